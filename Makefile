@@ -1,0 +1,14 @@
+# Thin wrapper: every target bootstraps .venv the same way reproduce.sh does.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+
+.PHONY: setup test smoke bench
+
+setup:
+	./reproduce.sh --setup-only
+
+test: setup  ## the test suite CI runs (2 cores, no GPU)
+	$(PY) -m pytest
+
+smoke: setup  ## the whole pipeline at smoke budget
+	./reproduce.sh --profile smoke
