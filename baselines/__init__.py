@@ -1,0 +1,1 @@
+"""Comparison methods no maintained library provides (DBC), importable as ``baselines``."""

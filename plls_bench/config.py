@@ -1,0 +1,295 @@
+"""Typed configuration: dataclass schemas registered in Hydra's ConfigStore.
+
+Values live in ``conf/`` (yaml, every key commented with its source); this module holds only types,
+defaults that are *not* paper settings, and validation. ``validate`` runs when Hydra's
+``DictConfig`` is converted with ``OmegaConf.to_object`` (see :func:`to_config`), which the entry
+point does before it creates a run directory or starts any compute. Errors name the offending key.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig, OmegaConf
+
+ENV_NAMES = ("mountaincar", "carracing", "cheetah")
+REPR_KINDS = ("none", "vae")
+ALGO_NAMES = ("ppo", "dbc", "none")
+BUDGET_NAMES = ("smoke", "quick", "paper")
+
+
+class ConfigError(ValueError):
+    """A config value is invalid; the message names the key."""
+
+
+def check(ok: bool, key: str, message: str) -> None:
+    """Raise :class:`ConfigError` naming ``key`` unless ``ok``."""
+    if not ok:
+        raise ConfigError(f"{key}: {message}")
+
+
+def check_positive(value: float, key: str) -> None:
+    check(isinstance(value, (int, float)) and math.isfinite(value) and value > 0, key,
+          f"must be > 0, got {value!r}")
+
+
+def check_nonnegative(value: float, key: str) -> None:
+    check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, key,
+          f"must be >= 0, got {value!r}")
+
+
+def check_choice(value: str, choices: tuple[str, ...], key: str) -> None:
+    check(value in choices, key, f"unknown value {value!r}; choose one of {', '.join(choices)}")
+
+
+def check_fraction(value: float, key: str, *, open_right: bool = True) -> None:
+    upper_ok = value < 1 if open_right else value <= 1
+    check(0 < value and upper_ok, key, f"must be in (0, 1{')' if open_right else ']'}, got {value!r}")
+
+
+class Validated:
+    """Runs :meth:`validate` after construction, once every field has a value.
+
+    OmegaConf instantiates schemas with ``???`` placeholders when it registers them; those
+    instances are templates, not configs, so they are not validated. A config converted with
+    ``OmegaConf.to_object`` has no placeholders left (OmegaConf refuses missing values first).
+    """
+
+    def __post_init__(self) -> None:
+        if not any(getattr(self, f.name) == MISSING for f in fields(self)):  # type: ignore[arg-type]
+            self.validate()
+
+    def validate(self) -> None:
+        """Check value ranges and choices; raise :class:`ConfigError` naming the key."""
+
+
+# --------------------------------------------------------------------------- environments
+@dataclass
+class EnvConfig(Validated):
+    """One task: a gymnasium id or dm_control domain-task, and its observation settings."""
+
+    name: str = MISSING
+    gym_id: str = MISSING
+    max_episode_steps: int = MISSING
+    pixels: bool = False
+    image_size: int = 0
+    frame_stack: int = 1
+    action_repeat: int = 1
+    camera_id: int = 0
+    data_pixels: bool = False
+    data_num_envs: int = 1
+    data_async: bool = False
+    data_train_fraction: float = MISSING
+
+    def validate(self) -> None:
+        check_choice(self.name, ENV_NAMES, "env.name")
+        check_positive(self.max_episode_steps, "env.max_episode_steps")
+        check_positive(self.frame_stack, "env.frame_stack")
+        check_positive(self.action_repeat, "env.action_repeat")
+        check_positive(self.data_num_envs, "env.data_num_envs")
+        check_fraction(self.data_train_fraction, "env.data_train_fraction")
+        if self.pixels or self.data_pixels:
+            check_positive(self.image_size, "env.image_size")
+
+
+# --------------------------------------------------------------------------- representations
+@dataclass
+class StateReprConfig(Validated):
+    """V_s: convolutional VAE over image observations (World Models style)."""
+
+    kind: str = "none"
+    latent_dim: int = 32
+    channels: list[int] = field(default_factory=lambda: [32, 64, 128, 256])
+    kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 4, 4])
+    deconv_kernel_sizes: list[int] = field(default_factory=lambda: [5, 5, 6, 6])
+    kl_weight: float = 1.0
+    learning_rate: float = 1e-4
+    batch_size: int = 100
+
+    def validate(self) -> None:
+        check_choice(self.kind, REPR_KINDS, "repr.state.kind")
+        check_positive(self.latent_dim, "repr.state.latent_dim")
+        check_nonnegative(self.kl_weight, "repr.state.kl_weight")
+        check_positive(self.learning_rate, "repr.state.learning_rate")
+        check_positive(self.batch_size, "repr.state.batch_size")
+        check(len(self.channels) == len(self.kernel_sizes), "repr.state.kernel_sizes",
+              "needs one kernel size per entry of repr.state.channels")
+        check(len(self.deconv_kernel_sizes) == len(self.channels), "repr.state.deconv_kernel_sizes",
+              "needs one kernel size per entry of repr.state.channels")
+        for i, width in enumerate(self.channels):
+            check_positive(width, f"repr.state.channels[{i}]")
+
+
+@dataclass
+class ActionReprConfig(Validated):
+    """V_a: MLP VAE over actions; its frozen decoder maps the policy's latent e to an action."""
+
+    kind: str = "none"
+    latent_dim: int = 3
+    encoder_hidden: list[int] = field(default_factory=lambda: [32, 16, 8])
+    decoder_hidden: list[int] = field(default_factory=lambda: [8, 16, 32])
+    kl_weight: float = 1.0
+    learning_rate: float = 1e-3
+    batch_size: int = 64
+    latent_action_bound: float = 3.0
+
+    def validate(self) -> None:
+        check_choice(self.kind, REPR_KINDS, "repr.action.kind")
+        check_positive(self.latent_dim, "repr.action.latent_dim")
+        check_nonnegative(self.kl_weight, "repr.action.kl_weight")
+        check_positive(self.learning_rate, "repr.action.learning_rate")
+        check_positive(self.batch_size, "repr.action.batch_size")
+        check_positive(self.latent_action_bound, "repr.action.latent_action_bound")
+        for name in ("encoder_hidden", "decoder_hidden"):
+            for i, width in enumerate(getattr(self, name)):
+                check_positive(width, f"repr.action.{name}[{i}]")
+
+
+@dataclass
+class ReprConfig(Validated):
+    state: StateReprConfig = field(default_factory=StateReprConfig)
+    action: ActionReprConfig = field(default_factory=ActionReprConfig)
+    per_trial: bool = False
+
+
+# --------------------------------------------------------------------------- algorithms
+@dataclass
+class PPOConfig(Validated):
+    """stable-baselines3 PPO settings (Tables 1 and 2 of the paper)."""
+
+    n_steps: int = MISSING
+    learning_rate: float = MISSING
+    n_epochs: int = MISSING
+    batch_size: int = MISSING
+    n_envs: int = MISSING
+    gamma: float = MISSING
+    gae_lambda: float = MISSING
+    clip_range: float = MISSING
+    vf_coef: float = MISSING
+    ent_coef: float = MISSING
+    max_grad_norm: float = 0.5
+    policy_hidden: list[int] = field(default_factory=lambda: [64, 64])
+    features_extractor: str = "flatten"
+    log_std_init: float = 0.0
+    vec_env: str = "dummy"
+
+    def validate(self) -> None:
+        for key in ("n_steps", "learning_rate", "n_epochs", "batch_size", "n_envs", "max_grad_norm"):
+            check_positive(getattr(self, key), f"algo.ppo.{key}")
+        check_fraction(self.gamma, "algo.ppo.gamma", open_right=False)
+        check_fraction(self.gae_lambda, "algo.ppo.gae_lambda", open_right=False)
+        check_positive(self.clip_range, "algo.ppo.clip_range")
+        check_nonnegative(self.vf_coef, "algo.ppo.vf_coef")
+        check_nonnegative(self.ent_coef, "algo.ppo.ent_coef")
+        check_choice(self.features_extractor, ("flatten", "paper_cnn"), "algo.ppo.features_extractor")
+        check_choice(self.vec_env, ("dummy", "subproc"), "algo.ppo.vec_env")
+        for i, width in enumerate(self.policy_hidden):
+            check_positive(width, f"algo.ppo.policy_hidden[{i}]")
+
+
+@dataclass
+class DBCConfig(Validated):
+    """Deep Bisimulation for Control (Zhang et al., 2021); filled in by baselines/dbc."""
+
+    learning_rate: float = 1e-3
+
+    def validate(self) -> None:
+        check_positive(self.learning_rate, "algo.dbc.learning_rate")
+
+
+@dataclass
+class AlgoConfig(Validated):
+    name: str = "none"
+    ppo: Optional[PPOConfig] = None
+    dbc: Optional[DBCConfig] = None
+
+    def validate(self) -> None:
+        check_choice(self.name, ALGO_NAMES, "algo.name")
+        if self.name != "none":
+            check(getattr(self, self.name) is not None, f"algo.{self.name}",
+                  f"algo.name={self.name} needs an algo.{self.name} section")
+
+
+# --------------------------------------------------------------------------- budgets
+@dataclass
+class BudgetConfig(Validated):
+    """How much compute a run gets; smoke/quick/paper profiles, specialised per task."""
+
+    name: str = MISSING
+    trials: int = MISSING
+    data_episodes: int = MISSING
+    data_steps_per_episode: int = MISSING
+    repr_epochs: int = MISSING
+    train_env_steps: int = MISSING
+    eval_every_env_steps: int = MISSING
+    eval_episodes: int = MISSING
+
+    def validate(self) -> None:
+        check_choice(self.name, BUDGET_NAMES, "budget.name")
+        for key in ("trials", "data_episodes", "data_steps_per_episode", "repr_epochs",
+                    "train_env_steps", "eval_every_env_steps", "eval_episodes"):
+            check_positive(getattr(self, key), f"budget.{key}")
+
+
+# --------------------------------------------------------------------------- root
+RUNNERS = ("collect", "repr", "ppo", "dbc", "study")
+
+
+@dataclass
+class Config(Validated):
+    """One run: what to run (runner, experiment), on which task, with which seed and budget."""
+
+    experiment: str = "adhoc"
+    variant: str = "auto"
+    runner: str = "collect"
+    seed: int = 0
+    data_seed: int = 0
+    runs_dir: str = "results/runs"
+    device: str = "cpu"
+    torch_threads: int = 0
+    progress: bool = True
+    env: EnvConfig = field(default_factory=EnvConfig)
+    repr: ReprConfig = field(default_factory=ReprConfig)
+    algo: AlgoConfig = field(default_factory=AlgoConfig)
+    budget: BudgetConfig = field(default_factory=BudgetConfig)
+
+    def validate(self) -> None:
+        check_choice(self.runner, RUNNERS, "runner")
+        check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
+        check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
+        check_choice(self.device, ("cpu", "cuda", "auto"), "device")
+        check_nonnegative(self.torch_threads, "torch_threads")
+        check(bool(self.experiment) and "/" not in self.experiment, "experiment",
+              f"must be a non-empty name without '/', got {self.experiment!r}")
+        check("/" not in self.variant, "variant", f"must not contain '/', got {self.variant!r}")
+        if self.runner in ("ppo", "dbc"):
+            check(self.algo.name == self.runner, "algo",
+                  f"runner={self.runner} needs algo={self.runner}, got algo.name={self.algo.name}")
+
+
+def register_configs() -> None:
+    """Register the root schema; conf/config.yaml lists it first in its defaults."""
+    ConfigStore.instance().store(name="plls_schema", node=Config)
+
+
+def to_config(cfg: DictConfig | Config) -> Config:
+    """Convert Hydra's DictConfig to the typed :class:`Config` (runs every ``__post_init__``)."""
+    if isinstance(cfg, Config):
+        return cfg
+    try:
+        obj: Any = OmegaConf.to_object(cfg)
+    except ConfigError:
+        raise
+    except Exception as err:  # OmegaConf's own errors: missing values, wrong types
+        raise ConfigError(_omegaconf_message(err)) from err
+    assert isinstance(obj, Config), f"expected Config, got {type(obj).__name__}"
+    return obj
+
+
+def _omegaconf_message(err: Exception) -> str:
+    """First line of an OmegaConf error, prefixed by its full key when it names one."""
+    key = getattr(err, "full_key", None)
+    first = str(err).splitlines()[0] if str(err) else type(err).__name__
+    return f"{key}: {first}" if key else first
