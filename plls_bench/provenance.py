@@ -1,0 +1,64 @@
+"""Where a run came from: code version, packages, command, machine and time."""
+from __future__ import annotations
+
+import importlib.metadata
+import os
+import platform
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+PACKAGES = ("plls-bench", "torch", "numpy", "gymnasium", "stable-baselines3", "mujoco",
+            "dm-control", "hydra-core", "omegaconf", "box2d", "cvxpy")
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def git_state(repo: Path = REPO_ROOT) -> dict[str, Any]:
+    """Commit sha and whether the working tree has uncommitted changes (None outside git)."""
+    def git(*args: str) -> str | None:
+        try:
+            out = subprocess.run(["git", "-C", str(repo), *args], capture_output=True, text=True,
+                                 timeout=10, check=True)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return out.stdout.strip()
+
+    sha = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no")
+    return {"git_sha": sha, "git_dirty": None if status is None else bool(status)}
+
+
+def package_versions() -> dict[str, str | None]:
+    versions: dict[str, str | None] = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def device_description() -> str:
+    try:
+        import torch
+    except ImportError:
+        return "cpu (torch missing)"
+    if torch.cuda.is_available():
+        return f"cuda: {torch.cuda.get_device_name(0)}"
+    return f"cpu: {platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+
+
+def collect_provenance() -> dict[str, Any]:
+    return {
+        **git_state(),
+        "packages": package_versions(),
+        "python": sys.version.split()[0],
+        "command": [Path(sys.executable).name, *sys.argv],
+        "host": socket.gethostname(),
+        "device": device_description(),
+        "mujoco_gl": os.environ.get("MUJOCO_GL"),
+        "start_time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }

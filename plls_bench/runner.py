@@ -1,0 +1,77 @@
+"""Run one composed config in its run directory: skip if done, resume or start, record status.
+
+Runners are looked up by ``cfg.runner`` in :data:`RUNNERS` ("module:function", imported lazily
+so that choosing one task never imports another's simulator).
+"""
+from __future__ import annotations
+
+import importlib
+import logging
+from pathlib import Path
+from typing import Callable
+
+from plls_bench.config import Config
+from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, Run, config_hash
+from plls_bench.seeding import derive_seeds, seed_everything
+
+log = logging.getLogger(__name__)
+
+RUNNERS: dict[str, str] = {
+    "collect": "plls_bench.data:run",
+}
+
+
+def resolve_runner(name: str) -> Callable[[Config, Run], None]:
+    if name not in RUNNERS:
+        raise KeyError(f"runner {name!r} is not implemented; available: {', '.join(RUNNERS)}")
+    module, _, func = RUNNERS[name].partition(":")
+    return getattr(importlib.import_module(module), func)
+
+
+def execute(cfg: Config, run_dir: str | Path) -> str:
+    """Run ``cfg`` in ``run_dir``. Returns ``"skipped"`` (already done with this config) or
+    ``"done"``; raises after marking the run failed. A run dir holding a *different* config is
+    moved aside under ``<runs_dir>/.superseded/`` first, never overwritten or deleted."""
+    run, cfg_hash = Run(run_dir), config_hash(cfg)
+    if run.is_done(cfg_hash):
+        log.info("already done with config %s: %s", cfg_hash, run.path)
+        return "skipped"
+    previous = (run.read_config() or {}).get("config_hash")
+    if previous is not None and previous != cfg_hash:
+        moved = _supersede_keeping_hydra(run, cfg.runs_dir)
+        log.warning("config changed (%s -> %s): previous run moved to %s", previous, cfg_hash, moved)
+    fn = resolve_runner(cfg.runner)
+    _configure_torch(cfg)
+    seed_everything(derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).train)
+    run.prepare(cfg, cfg_hash)
+    run.write_status(STATUS_RUNNING, config_hash=cfg_hash)
+    try:
+        fn(cfg, run)
+    except BaseException as err:
+        run.write_status(STATUS_FAILED, config_hash=cfg_hash, error=f"{type(err).__name__}: {err}")
+        raise
+    run.write_status(STATUS_DONE, config_hash=cfg_hash)
+    return "done"
+
+
+def _supersede_keeping_hydra(run: Run, runs_dir: str) -> Path:
+    """Move the old run aside, but keep Hydra's files of *this* launch (already written)."""
+    import shutil
+    import tempfile
+
+    keep = [p for p in (run.path / ".hydra", run.path / "run.log") if p.exists()]
+    with tempfile.TemporaryDirectory(dir=run.path.parent) as hold:
+        for path in keep:
+            shutil.move(str(path), str(Path(hold) / path.name))
+        moved = run.supersede(runs_dir)
+        run.path.mkdir(parents=True, exist_ok=True)
+        for path in keep:
+            shutil.move(str(Path(hold) / path.name), str(run.path / path.name))
+    return moved
+
+
+def _configure_torch(cfg: Config) -> None:
+    if cfg.torch_threads > 0:
+        import torch
+
+        torch.set_num_threads(cfg.torch_threads)

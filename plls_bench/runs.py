@@ -1,0 +1,216 @@
+"""The run-directory contract: paths, atomic writes, status, provenance and metrics streams.
+
+A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
+
+    .hydra/               Hydra's own record of the composed config and overrides
+    config.json           the typed, resolved config and its hash (what the collector reads)
+    provenance.json       git sha + dirty flag, package versions, command, host, device, starts
+    metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
+    checkpoints/          whatever the runner needs to resume
+    status.json           written last and atomically: running -> done | failed (with the error)
+
+Nothing outside this module writes into a run directory except through :class:`Run`.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
+SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
+# Config keys that do not change what a run computes: left out of the config hash.
+HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
+
+
+# --------------------------------------------------------------------------- atomic files
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temp file in the same directory, fsync and rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_json(path: Path, obj: Any) -> None:
+    atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True, default=str) + "\n").encode())
+
+
+def read_json(path: Path) -> Any | None:
+    """The parsed JSON at ``path``, or None when it is missing or unreadable."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def append_jsonl(path: Path, record: dict[str, Any]) -> None:
+    """Append one line-complete JSON record (one write call, flushed and fsynced)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    line = json.dumps(record, sort_keys=True, default=float) + "\n"
+    with open(path, "ab") as handle:
+        handle.write(line.encode())
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+def read_jsonl(path: Path) -> list[dict[str, Any]]:
+    """All complete records; a torn last line (a kill mid-write) or a corrupt line is skipped."""
+    records: list[dict[str, Any]] = []
+    try:
+        text = Path(path).read_text()
+    except OSError:
+        return records
+    for line in text.splitlines(keepends=True):
+        if not line.endswith("\n"):
+            break
+        try:
+            records.append(json.loads(line))
+        except ValueError:
+            continue
+    return records
+
+
+# --------------------------------------------------------------------------- config identity
+def config_dict(cfg: Any) -> dict[str, Any]:
+    """A plain dict of a (dataclass) config."""
+    return asdict(cfg) if is_dataclass(cfg) else dict(cfg)
+
+
+def stable_hash(obj: Any, length: int = 16) -> str:
+    """Hex digest of the canonical JSON of ``obj`` (sorted keys)."""
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:length]
+
+
+def config_hash(cfg: Any) -> str:
+    """Identity of what a run computes: its config less :data:`HASH_EXCLUDED_KEYS`."""
+    data = {k: v for k, v in config_dict(cfg).items() if k not in HASH_EXCLUDED_KEYS}
+    return stable_hash(data)
+
+
+# --------------------------------------------------------------------------- paths
+_SAFE = re.compile(r"[^A-Za-z0-9_.,=+-]")
+
+
+def variant_name(variant: str, override_dirname: str = "") -> str:
+    """The run dir's variant part: an explicit ``variant``, else the overrides, else ``default``."""
+    if variant and variant != "auto":
+        return variant
+    name = _SAFE.sub("_", override_dirname.replace("/", "."))
+    return name[:120] or "default"
+
+
+def run_dir_path(runs_dir: str | Path, experiment: str, variant: str, seed: int) -> Path:
+    return Path(runs_dir) / experiment / variant / f"seed={seed}"
+
+
+# --------------------------------------------------------------------------- the run
+class Run:
+    """Owns one run directory; every write into it goes through here."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.metrics_dir = self.path / "metrics"
+        self.checkpoints_dir = self.path / "checkpoints"
+
+    # status ---------------------------------------------------------------
+    @property
+    def status_path(self) -> Path:
+        return self.path / "status.json"
+
+    def read_status(self) -> dict[str, Any] | None:
+        return read_json(self.status_path)
+
+    def write_status(self, state: str, **fields: Any) -> None:
+        atomic_write_json(self.status_path, {"state": state, "updated": _now(), **fields})
+
+    def is_done(self, cfg_hash: str) -> bool:
+        status = self.read_status() or {}
+        return status.get("state") == STATUS_DONE and status.get("config_hash") == cfg_hash
+
+    # config and provenance -----------------------------------------------
+    def prepare(self, cfg: Any, cfg_hash: str) -> None:
+        """Create the layout, write config.json and add this start to provenance.json."""
+        self.metrics_dir.mkdir(parents=True, exist_ok=True)
+        self.checkpoints_dir.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(self.path / "config.json", {"config_hash": cfg_hash, "config": config_dict(cfg)})
+        from plls_bench.provenance import collect_provenance  # lazy: imports torch & friends
+
+        previous = read_json(self.path / "provenance.json") or {}
+        starts = list(previous.get("starts", [])) + [collect_provenance()]
+        atomic_write_json(self.path / "provenance.json", {**starts[0], "starts": starts})
+
+    def read_config(self) -> dict[str, Any] | None:
+        return read_json(self.path / "config.json")
+
+    def supersede(self, runs_dir: str | Path) -> Path:
+        """Move this run dir (whose config changed) aside under ``runs_dir/.superseded``."""
+        old_hash = (self.read_config() or {}).get("config_hash", "unknown")
+        rel = self.path.resolve().relative_to(Path(runs_dir).resolve())
+        target = Path(runs_dir) / SUPERSEDED_DIR / rel.parent / f"{rel.name}.{old_hash}.{int(time.time())}"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(str(self.path), str(target))
+        return target
+
+    # metrics ----------------------------------------------------------------
+    def metrics_path(self, stream: str) -> Path:
+        return self.metrics_dir / f"{stream}.jsonl"
+
+    def log(self, stream: str, record: dict[str, Any]) -> None:
+        """Append ``record`` to ``metrics/<stream>.jsonl``."""
+        append_jsonl(self.metrics_path(stream), record)
+
+    def read_metrics(self, stream: str) -> list[dict[str, Any]]:
+        return read_jsonl(self.metrics_path(stream))
+
+    def truncate_metrics(self, stream: str, keep: Callable[[dict[str, Any]], bool]) -> int:
+        """Atomically rewrite a stream keeping only records where ``keep`` holds (used on resume,
+        so rows logged after the checkpoint being resumed are not duplicated). Returns rows dropped."""
+        path = self.metrics_path(stream)
+        if not path.exists():
+            return 0
+        records = read_jsonl(path)
+        kept = [r for r in records if keep(r)]
+        text = "".join(json.dumps(r, sort_keys=True, default=float) + "\n" for r in kept)
+        atomic_write_bytes(path, text.encode())
+        return len(records) - len(kept)
+
+    def write_json(self, relpath: str, obj: Any) -> Path:
+        """Atomically write a JSON file at ``relpath`` inside the run dir."""
+        path = self.path / relpath
+        atomic_write_json(path, obj)
+        return path
+
+    def write_bytes(self, relpath: str, data: bytes) -> Path:
+        path = self.path / relpath
+        atomic_write_bytes(path, data)
+        return path
+
+
+def iter_run_dirs(runs_dir: str | Path) -> Iterable[Path]:
+    """Every ``<experiment>/<variant>/seed=<k>`` dir under ``runs_dir`` (artifacts and superseded
+    runs excluded), sorted."""
+    root = Path(runs_dir)
+    for path in sorted(root.glob("*/*/seed=*")):
+        if path.is_dir() and path.parts[-3] not in ("artifacts", SUPERSEDED_DIR):
+            yield path
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%S%z")

@@ -1,0 +1,51 @@
+"""Explicit seeding: one trial seed derives every stream of randomness through SeedSequence.
+
+Representations are shared by all trials (the paper's offline phase), so the data stream comes
+from ``data_seed`` unless ``repr.per_trial`` asks for one per trial.
+"""
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+
+import numpy as np
+
+# Spawn keys name the streams, so adding a stream later never shifts the existing ones.
+_DATA, _TRAIN, _EVAL = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class Seeds:
+    data: int   # random-policy collection and representation training
+    train: int  # policy learning: network init, sampling, training env resets
+    eval: int   # evaluation envs (separately seeded, never used for learning)
+
+
+def _child(entropy: int, stream: int) -> int:
+    seq = np.random.SeedSequence(entropy=entropy, spawn_key=(stream,))
+    return int(seq.generate_state(1, dtype=np.uint32)[0])
+
+
+def derive_seeds(seed: int, data_seed: int, per_trial_data: bool = False) -> Seeds:
+    """Seeds of every stream for trial ``seed``."""
+    return Seeds(
+        data=_child(seed if per_trial_data else data_seed, _DATA),
+        train=_child(seed, _TRAIN),
+        eval=_child(seed, _EVAL),
+    )
+
+
+def episode_seeds(seed: int, n: int) -> list[int]:
+    """``n`` independent seeds for episodes 0..n-1 of a stream seeded by ``seed``."""
+    return [int(s.generate_state(1, dtype=np.uint32)[0]) for s in np.random.SeedSequence(seed).spawn(n)]
+
+
+def seed_everything(seed: int) -> None:
+    """Seed python, numpy's legacy global RNG and torch (for libraries that use them)."""
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    try:
+        import torch
+    except ImportError:
+        return
+    torch.manual_seed(seed)
