@@ -1,0 +1,56 @@
+"""Env factories for the paper's three tasks, keyed by ``env.name``.
+
+Pixel observations are channel-first everywhere in the suite: CarRacing ``(3, 96, 96)`` float32 in
+[0, 1] (the paper's layout, Sec. 5.2), Cheetah ``(3 * frame_stack, 84, 84)`` uint8 (as the DBC
+reference; its encoder divides by 255). Random-policy data stores pixels as uint8 ``(C, H, W)``.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import gymnasium as gym
+
+from plls_bench.config import EnvConfig
+
+
+def _mountaincar(cfg: EnvConfig, for_data: bool, render_mode: str | None) -> gym.Env:
+    return gym.make(cfg.gym_id, max_episode_steps=cfg.max_episode_steps, render_mode=render_mode)
+
+
+def _carracing(cfg: EnvConfig, for_data: bool, render_mode: str | None) -> gym.Env:
+    from plls_bench.envs.carracing import ChannelsFirst
+
+    env = gym.make(cfg.gym_id, continuous=True, max_episode_steps=cfg.max_episode_steps,
+                   render_mode=render_mode)
+    return ChannelsFirst(env, as_float=not for_data)
+
+
+def _cheetah(cfg: EnvConfig, for_data: bool, render_mode: str | None) -> gym.Env:
+    from plls_bench.envs.dmc import DMCEnv
+
+    pixels = cfg.data_pixels if for_data else cfg.pixels
+    return DMCEnv(cfg.gym_id, pixels=pixels, image_size=cfg.image_size, camera_id=cfg.camera_id,
+                  action_repeat=cfg.action_repeat, frame_stack=cfg.frame_stack, render_mode=render_mode)
+
+
+ENV_FACTORIES: dict[str, Callable[[EnvConfig, bool, str | None], gym.Env]] = {
+    "mountaincar": _mountaincar,
+    "carracing": _carracing,
+    "cheetah": _cheetah,
+}
+
+
+def make_env(cfg: EnvConfig, *, for_data: bool = False, render_mode: str | None = None) -> gym.Env:
+    """One env of task ``cfg.name``. ``for_data``: the observation layout stored in random-policy
+    datasets (uint8 pixels; Cheetah's proprioceptive state unless ``env.data_pixels``)."""
+    return ENV_FACTORIES[cfg.name](cfg, for_data, render_mode)
+
+
+def make_vec_env(cfg: EnvConfig, n_envs: int, seed: int, *, subproc: bool = False):
+    """A stable-baselines3 VecEnv of ``n_envs`` copies; env i's first reset uses ``seed + i``."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    factories = [lambda: make_env(cfg) for _ in range(n_envs)]
+    venv = SubprocVecEnv(factories, start_method="forkserver") if subproc else DummyVecEnv(factories)
+    venv.seed(seed)
+    return venv

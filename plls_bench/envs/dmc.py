@@ -1,0 +1,94 @@
+"""dm_control tasks as gymnasium envs: pixels (channel-first uint8), action repeat, frame stack.
+
+A small wrapper rather than shimmy's, because it renders only the last physics step of each
+action repeat (rendering dominates the cost on CPU) and stacks frames along the channel axis,
+as the DBC reference code does.
+"""
+from __future__ import annotations
+
+from collections import deque
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from plls_bench.envs.gl import ensure_mujoco_gl
+
+
+class DMCEnv(gym.Env):
+    """``domain-task`` from dm_control's suite with actions in [-1, 1]^n.
+
+    Observations: ``(3 * frame_stack, size, size)`` uint8 pixels, or the flattened proprioceptive
+    state (float32) when ``pixels=False``. An episode ends by truncation at dm_control's time limit.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
+
+    def __init__(self, domain_task: str, *, pixels: bool = True, image_size: int = 84,
+                 camera_id: int = 0, action_repeat: int = 1, frame_stack: int = 1,
+                 render_mode: str | None = None) -> None:
+        ensure_mujoco_gl()  # even state-only: importing dm_control initialises a GL backend
+        self.domain, self.task = domain_task.split("-", 1)
+        self.pixels, self.image_size, self.camera_id = pixels, image_size, camera_id
+        self.action_repeat, self.frame_stack = action_repeat, frame_stack
+        self.render_mode = render_mode
+        self._env = self._load(seed=None)
+        spec = self._env.action_spec()
+        self._act_low, self._act_high = spec.minimum.astype(np.float64), spec.maximum.astype(np.float64)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=spec.shape, dtype=np.float32)
+        if pixels:
+            shape = (3 * frame_stack, image_size, image_size)
+            self.observation_space = gym.spaces.Box(0, 255, shape=shape, dtype=np.uint8)
+        else:
+            dim = sum(int(np.prod(v.shape)) for v in self._env.observation_spec().values())
+            self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(dim,), dtype=np.float32)
+        self._frames: deque[np.ndarray] = deque(maxlen=frame_stack)
+
+    def _load(self, seed: int | None) -> Any:
+        from dm_control import suite  # after ensure_mujoco_gl: mujoco reads MUJOCO_GL at import
+
+        return suite.load(self.domain, self.task, task_kwargs={"random": seed})
+
+    def _frame(self) -> np.ndarray:
+        image = self._env.physics.render(self.image_size, self.image_size, camera_id=self.camera_id)
+        return np.ascontiguousarray(image.transpose(2, 0, 1))
+
+    def _observation(self, time_step: Any) -> np.ndarray:
+        if not self.pixels:
+            parts = [np.asarray(v, dtype=np.float32).ravel() for v in time_step.observation.values()]
+            return np.concatenate(parts)
+        return np.concatenate(list(self._frames), axis=0)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        if seed is not None:  # dm_control seeds its task RNG at load time
+            self._env = self._load(seed)
+        time_step = self._env.reset()
+        if self.pixels:
+            frame = self._frame()
+            for _ in range(self.frame_stack):
+                self._frames.append(frame)
+        return self._observation(time_step), {}
+
+    def step(self, action: np.ndarray):
+        action = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+        scaled = self._act_low + (action + 1.0) * 0.5 * (self._act_high - self._act_low)
+        reward, time_step = 0.0, None
+        for _ in range(self.action_repeat):
+            time_step = self._env.step(scaled)
+            reward += time_step.reward or 0.0
+            if time_step.last():
+                break
+        if self.pixels:
+            self._frames.append(self._frame())
+        truncated = bool(time_step.last())
+        return self._observation(time_step), float(reward), False, truncated, {}
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        image = self._env.physics.render(self.image_size or 84, self.image_size or 84, camera_id=self.camera_id)
+        return np.ascontiguousarray(image)
+
+    def close(self) -> None:
+        self._env = None
