@@ -1,0 +1,126 @@
+"""Every shipped yaml composes and validates; bad input fails before any run dir or compute."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from plls_bench.composition import CONF_DIR, compose
+from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError
+from tests.conftest import EXPERIMENTS, run_cli
+
+
+def overrides_for(yaml_path: Path) -> list[str]:
+    """The group choices that make Hydra load ``yaml_path``; fails for a yaml no rule covers,
+    so a new config directory cannot slip past this test."""
+    rel = yaml_path.relative_to(CONF_DIR)
+    group, name = "/".join(rel.parts[:-1]), rel.stem
+    if group == "":
+        return []
+    if group == "experiment":
+        return [f"+experiment={name}"]
+    if group in ("env", "budget", "algo", "repr/state", "repr/action"):
+        extra = ["runner=ppo"] if name == "ppo" else []
+        extra += ["env=mountaincar"] if group == "algo" else []
+        extra += ["env=cheetah", "runner=dbc"] if name == "dbc" else []
+        return [f"{group}={name}", *extra]
+    if group.endswith("per_env"):  # <choice>_<env> or <env>_<profile> (budget)
+        first, second = name.rsplit("_", 1)
+        if group == "budget/per_env":
+            return [f"env={first}", f"budget={second}"]
+        parent = group.removesuffix("/per_env")
+        runner = [f"runner={first}"] if parent == "algo" else []
+        return [f"{parent}={first}", f"env={second}", *runner]
+    if group == "budget/per_algo":  # <algo>_<env>_<profile>
+        algo, env, profile = name.split("_")
+        return [f"algo={algo}", f"runner={algo}", f"env={env}", f"budget={profile}"]
+    raise AssertionError(f"no composition rule for {rel}: add one to tests/test_config.py")
+
+
+ALL_YAML = sorted(CONF_DIR.rglob("*.yaml"))
+
+
+@pytest.mark.parametrize("yaml_path", ALL_YAML, ids=lambda p: str(p.relative_to(CONF_DIR)))
+def test_every_yaml_composes_and_validates(yaml_path: Path) -> None:
+    cfg = compose(overrides_for(yaml_path))
+    assert cfg.env.name in ENV_NAMES
+
+
+@pytest.mark.parametrize("budget", BUDGET_NAMES)
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_every_experiment_composes_at_every_budget(experiment: str, budget: str) -> None:
+    cfg = compose([f"+experiment={experiment}", f"budget={budget}"])
+    assert cfg.experiment == experiment
+    assert cfg.budget.name == budget
+
+
+def test_every_yaml_key_has_a_comment() -> None:
+    """House rule: every value in conf/ says where it comes from."""
+    bare = []
+    for path in ALL_YAML:
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            text = line.strip()
+            if not text or text.startswith("#") or text.startswith("- ") or text == "defaults:":
+                continue
+            if text.endswith(":") and "#" not in text:  # a section header, e.g. `ppo:` or `hydra:`
+                continue
+            if "#" not in text:
+                bare.append(f"{path.relative_to(CONF_DIR)}:{number}: {text}")
+    assert not bare, "yaml values without a source comment:\n" + "\n".join(bare)
+
+
+TABLE_1 = {"n_steps": 512, "learning_rate": 4e-4, "n_epochs": 10, "batch_size": 128, "n_envs": 32,
+           "gamma": 0.99, "gae_lambda": 0.95, "clip_range": 0.2, "vf_coef": 0.5, "ent_coef": 0.01}
+TABLE_2 = {"n_steps": 1000, "learning_rate": 1e-4, "n_epochs": 10, "batch_size": 1000, "n_envs": 16,
+           "gamma": 0.99, "gae_lambda": 0.95, "clip_range": 0.2, "vf_coef": 0.5, "ent_coef": 0.01}
+
+
+@pytest.mark.parametrize(("env", "table"), [("mountaincar", TABLE_1), ("carracing", TABLE_2)])
+def test_paper_budget_carries_the_papers_ppo_table(env: str, table: dict[str, float]) -> None:
+    cfg = compose(["algo=ppo", "runner=ppo", f"env={env}", "budget=paper"])
+    assert cfg.algo.ppo is not None
+    for key, value in table.items():
+        assert getattr(cfg.algo.ppo, key) == pytest.approx(value), key
+
+
+def test_cli_prints_the_composed_job_config(tmp_path: Path) -> None:
+    done = run_cli("--cfg", "job", "algo=ppo", "runner=ppo", "env=mountaincar", "budget=paper",
+                   f"runs_dir={tmp_path}")
+    assert done.returncode == 0, done.stderr
+    assert "n_steps: 512" in done.stdout and "learning_rate: 0.0004" in done.stdout
+    assert not any(tmp_path.iterdir()), "--cfg must not create run directories"
+
+
+BAD_INPUTS = [
+    (["algo=ppo", "runner=ppo", "algo.ppo.learning_rate=-1"], "algo.ppo.learning_rate"),
+    (["repr/action=vae", "repr.action.latent_dim=0"], "repr.action.latent_dim"),
+    (["repr.state.latent_dim=0"], "repr.state.latent_dim"),
+    (["env=foo"], "env/foo"),
+    (["env.name=foo"], "env.name"),
+    (["seed=abc"], "seed"),
+    (["seed=-3"], "seed"),
+    (["repr.action.latnt_dim=3"], "latnt_dim"),
+    (["budget.trials=0"], "budget.trials"),
+]
+
+
+@pytest.mark.parametrize(("overrides", "key"), BAD_INPUTS, ids=[k for _, k in BAD_INPUTS])
+def test_bad_input_is_refused_before_any_run_dir(overrides: list[str], key: str, tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    done = run_cli("+experiment=mountaincar_data", f"runs_dir={runs}", *overrides)
+    assert done.returncode == 2, done.stdout + done.stderr
+    message = done.stderr.strip().splitlines()
+    assert len(message) == 1 and key in message[0], done.stderr
+    assert not runs.exists(), "an invalid config must not create a run directory"
+
+
+def test_bad_value_in_one_job_of_a_multirun_is_refused(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    done = run_cli("-m", "+experiment=mountaincar_data", f"runs_dir={runs}", "seed=0,-1")
+    assert done.returncode == 2 and "seed" in done.stderr
+    assert not runs.exists()
+
+
+def test_compose_raises_config_error_naming_the_key() -> None:
+    with pytest.raises(ConfigError, match="budget.eval_episodes"):
+        compose(["budget.eval_episodes=-1"])

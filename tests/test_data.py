@@ -1,0 +1,87 @@
+"""Random-policy data: deterministic bytes, paper-sized splits, built once across processes."""
+from __future__ import annotations
+
+import hashlib
+import multiprocessing as mp
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plls_bench.composition import compose
+from plls_bench.data import get_dataset
+from tests.conftest import compose_preset
+
+
+def data_bytes(path: Path) -> str:
+    return hashlib.sha256((path / "data.npz").read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("task", ["mountaincar", "carracing", "cheetah"])
+def test_same_seed_gives_byte_identical_data(task: str, tmp_path: Path) -> None:
+    digests = []
+    for attempt in ("a", "b"):
+        cfg = compose_preset(None, tmp_path / attempt, f"env={task}")
+        data, artifact = get_dataset(cfg)
+        assert artifact.built
+        digests.append(data_bytes(artifact.path))
+    assert digests[0] == digests[1]
+    steps = cfg.budget.data_steps_per_episode
+    assert 0 < len(data) <= cfg.budget.data_episodes * steps
+    assert data.actions.dtype == np.float32
+    low, high = (-1.0, 1.0) if task != "carracing" else (np.array([-1, 0, 0]), np.array([1, 1, 1]))
+    assert np.all(data.actions >= low) and np.all(data.actions <= high)
+    if task == "carracing":
+        assert data.observations.dtype == np.uint8 and data.observations.shape[1:] == (3, 96, 96)
+
+
+def test_other_seed_gives_other_data(tmp_path: Path) -> None:
+    a, _ = get_dataset(compose_preset(None, tmp_path, "data_seed=0"))
+    b, _ = get_dataset(compose_preset(None, tmp_path, "data_seed=1"))
+    assert not np.array_equal(a.actions, b.actions)
+
+
+def test_data_do_not_depend_on_parallelism(tmp_path: Path) -> None:
+    one, _ = get_dataset(compose_preset(None, tmp_path / "one", "env.data_num_envs=1"))
+    three, _ = get_dataset(compose_preset(None, tmp_path / "three", "env.data_num_envs=3",
+                                          "budget.data_episodes=2"))
+    for name in ("observations", "actions", "rewards", "obs_index"):
+        assert np.array_equal(getattr(one, name), getattr(three, name)), name
+
+
+def test_transitions_link_states_to_next_states(tmp_path: Path) -> None:
+    data, _ = get_dataset(compose_preset(None, tmp_path))
+    s, s_next = data.observations[data.obs_index], data.observations[data.obs_index + 1]
+    # MountainCar: x' = x + v' exactly, before clipping at the left wall
+    inside = s_next[:, 0] > -1.2 + 1e-6
+    assert np.allclose(s_next[inside, 0], np.clip(s[inside, 0] + s_next[inside, 1], -1.2, 0.6), atol=1e-5)
+    assert data.truncated[data.episode == 0][-1], "the data budget ends an episode by truncation"
+
+
+@pytest.mark.parametrize(("task", "n_total", "n_train"), [("mountaincar", 12 * 999, 8400),
+                                                            ("carracing", 57 * 1000, 54000)])
+def test_paper_split_sizes(task: str, n_total: int, n_train: int) -> None:
+    cfg = compose([f"env={task}", "budget=paper"])
+    assert cfg.budget.data_episodes * cfg.budget.data_steps_per_episode == n_total
+    assert round(n_total * cfg.env.data_train_fraction) == n_train
+
+
+def _build_in_child(runs_dir: str, queue: mp.Queue) -> None:
+    cfg = compose_preset(None, Path(runs_dir), "budget.data_episodes=4")
+    _, artifact = get_dataset(cfg)
+    queue.put((artifact.built, str(artifact.path)))
+
+
+def test_two_processes_build_the_dataset_once(tmp_path: Path) -> None:
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    procs = [ctx.Process(target=_build_in_child, args=(str(tmp_path), queue)) for _ in range(2)]
+    for proc in procs:
+        proc.start()
+    results = [queue.get(timeout=240) for _ in procs]
+    for proc in procs:
+        proc.join(timeout=60)
+        assert proc.exitcode == 0
+    assert sorted(built for built, _ in results) == [False, True]
+    assert results[0][1] == results[1][1]
+    assert not list((tmp_path / "artifacts" / "data").glob(".*tmp*")), "no temp dirs left behind"

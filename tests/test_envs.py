@@ -1,0 +1,72 @@
+"""The three tasks: gymnasium's env checker, observation layouts, pixels that actually render."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from plls_bench.envs import make_env
+from tests.conftest import compose_preset
+
+
+def env_cfg(task: str, runs_dir: Path):
+    return compose_preset(None, runs_dir, f"env={task}").env
+
+
+@pytest.mark.parametrize("task", ["mountaincar", "carracing", "cheetah"])
+def test_env_passes_gymnasium_check_env(task: str, runs_dir: Path) -> None:
+    env = make_env(env_cfg(task, runs_dir))
+    try:
+        check_env(env.unwrapped if task == "mountaincar" else env, skip_render_check=True)
+    finally:
+        env.close()
+
+
+def test_carracing_observations_are_chw_float_in_unit_interval(runs_dir: Path) -> None:
+    env = make_env(env_cfg("carracing", runs_dir))
+    obs, _ = env.reset(seed=0)
+    for _ in range(60):  # past the zoom-in animation
+        obs, *_ = env.step(np.array([0.0, 0.5, 0.0], dtype=np.float32))
+    env.close()
+    assert obs.shape == (3, 96, 96) and obs.dtype == np.float32
+    assert 0.0 <= obs.min() and obs.max() <= 1.0 and obs.std() > 0.01  # a real image, not blank
+
+
+def test_cheetah_renders_stacked_pixels_and_repeats_actions(runs_dir: Path) -> None:
+    cfg = env_cfg("cheetah", runs_dir)
+    env = make_env(cfg)
+    obs, _ = env.reset(seed=1)
+    assert obs.shape == (9, 84, 84) and obs.dtype == np.uint8
+    assert np.array_equal(obs[:3], obs[6:]), "first observation stacks the same frame"
+    total_steps = 0
+    for _ in range(5):
+        obs, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+        total_steps += 1
+        assert 0.0 <= reward <= cfg.action_repeat  # r(v) in [0, 1] per physics step
+    assert not np.array_equal(obs[:3], obs[6:]), "frames change as the cheetah moves"
+    assert obs.std() > 5, "pixels must show the scene"
+    assert env.unwrapped._env.physics.data.time == pytest.approx(5 * cfg.action_repeat * 0.01)
+    env.close()
+
+
+def test_cheetah_episode_is_250_agent_steps_at_repeat_4(runs_dir: Path) -> None:
+    env = make_env(env_cfg("cheetah", runs_dir), for_data=True)  # state-only: fast
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        assert not terminated
+        steps += 1
+    assert steps == 250
+
+
+def test_same_seed_same_first_observation(runs_dir: Path) -> None:
+    for task in ("mountaincar", "cheetah"):
+        env = make_env(env_cfg(task, runs_dir))
+        first, _ = env.reset(seed=7)
+        again, _ = env.reset(seed=7)
+        other, _ = env.reset(seed=8)
+        env.close()
+        assert np.array_equal(first, again) and not np.array_equal(first, other), task

@@ -1,0 +1,79 @@
+"""The run-directory contract: atomic files, tolerant jsonl, status, resume, superseding."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from plls_bench.runner import execute
+from plls_bench.runs import Run, atomic_write_json, iter_run_dirs, read_jsonl, variant_name
+from tests.conftest import compose_preset
+
+
+def test_atomic_write_leaves_no_temp_files(tmp_path: Path) -> None:
+    atomic_write_json(tmp_path / "a.json", {"x": 1})
+    atomic_write_json(tmp_path / "a.json", {"x": 2})
+    assert json.loads((tmp_path / "a.json").read_text()) == {"x": 2}
+    assert [p.name for p in tmp_path.iterdir()] == ["a.json"]
+
+
+def test_jsonl_reader_skips_a_torn_last_line(tmp_path: Path) -> None:
+    run = Run(tmp_path)
+    run.log("eval", {"step": 1})
+    run.log("eval", {"step": 2})
+    with open(run.metrics_path("eval"), "a") as handle:
+        handle.write('{"step": 3, "ret')  # killed mid-write
+    assert [r["step"] for r in read_jsonl(run.metrics_path("eval"))] == [1, 2]
+
+
+def test_truncate_drops_rows_after_the_checkpoint(tmp_path: Path) -> None:
+    run = Run(tmp_path)
+    for step in range(5):
+        run.log("eval", {"step": step})
+    assert run.truncate_metrics("eval", lambda r: r["step"] <= 2) == 2
+    assert [r["step"] for r in run.read_metrics("eval")] == [0, 1, 2]
+
+
+def test_variant_names() -> None:
+    assert variant_name("auto", "") == "default"
+    assert variant_name("auto", "repr/state=none,seed=3") == "repr.state=none,seed=3"
+    assert variant_name("ne8", "whatever") == "ne8"
+
+
+def test_execute_writes_the_contract_and_skips_when_done(runs_dir: Path) -> None:
+    cfg = compose_preset("mountaincar_data", runs_dir)
+    run_dir = runs_dir / "mountaincar_data" / "default" / "seed=0"
+    assert execute(cfg, run_dir) == "done"
+    for name in ("config.json", "provenance.json", "status.json", "metrics/dataset.json"):
+        assert (run_dir / name).is_file(), name
+    status = json.loads((run_dir / "status.json").read_text())
+    assert status["state"] == "done"
+    provenance = json.loads((run_dir / "provenance.json").read_text())
+    assert {"git_sha", "git_dirty", "packages", "command", "host", "device", "start_time"} <= set(provenance)
+    assert execute(cfg, run_dir) == "skipped"
+    assert list(iter_run_dirs(runs_dir)) == [run_dir]
+
+
+def test_changed_config_moves_the_old_run_aside(runs_dir: Path) -> None:
+    run_dir = runs_dir / "x" / "default" / "seed=0"
+    execute(compose_preset("mountaincar_data", runs_dir), run_dir)
+    changed = compose_preset("mountaincar_data", runs_dir, "budget.data_episodes=3")
+    assert execute(changed, run_dir) == "done"
+    superseded = list((runs_dir / ".superseded").rglob("config.json"))
+    assert len(superseded) == 1, "the old run is kept, not overwritten"
+    assert json.loads((run_dir / "config.json").read_text())["config"]["budget"]["data_episodes"] == 3
+
+
+def test_failed_run_records_the_error(runs_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import plls_bench.data as data
+
+    def explode(cfg, run):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(data, "run", explode)
+    run_dir = runs_dir / "e" / "default" / "seed=0"
+    with pytest.raises(RuntimeError):
+        execute(compose_preset("mountaincar_data", runs_dir), run_dir)
+    status = json.loads((run_dir / "status.json").read_text())
+    assert status["state"] == "failed" and "boom" in status["error"]
