@@ -38,6 +38,12 @@ setup_gl() {
   fi
 }
 
+pip_install() {
+  # This machine's pip config lists local index folders that may be absent; pip then prints one
+  # harmless warning per package. Drop those lines; pip's own exit status still decides.
+  "$VENV/bin/python" -m pip install -q "$@" 2>&1 | { grep -v "is ignored: it is neither a file nor a directory" || true; }
+}
+
 setup_venv() {
   local stamp="$VENV/.plls-stamp" want
   want="$(cat pyproject.toml | sha256sum | cut -c1-16)"
@@ -46,8 +52,8 @@ setup_venv() {
   [ -x "$VENV/bin/python" ] || { say "creating $VENV"; "$PYTHON" -m venv "$VENV"; }
   say "installing pinned dependencies into $VENV (first run only)"
   # torch first and alone: the pinned CPU wheel, so no other requirement drags in a CUDA build.
-  "$VENV/bin/python" -m pip install -q torch==2.13.0
-  "$VENV/bin/python" -m pip install -q -e .
+  pip_install torch==2.13.0
+  pip_install -e .
   echo "$want" > "$stamp"
 }
 
