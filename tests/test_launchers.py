@@ -13,21 +13,18 @@ def statuses(runs: Path) -> list[str]:
     return [json.loads(p.read_text())["state"] for p in sorted(runs.glob("mountaincar_data/default/seed=*/status.json"))]
 
 
-@pytest.mark.slow
-def test_two_job_multirun_through_submitit_local(tmp_path: Path) -> None:
-    runs = tmp_path / "runs"
-    done = run_cli("-m", "+experiment=mountaincar_data", "seed=0,1", f"runs_dir={runs}", "progress=false",
-                   "hydra/launcher=submitit_local", "hydra.launcher.timeout_min=5")
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert statuses(runs) == ["done", "done"]
-    assert (runs / ".submitit").is_dir(), "submitit's job logs live beside the runs"
+LAUNCHERS = {
+    "submitit_local": ["hydra/launcher=submitit_local", "hydra.launcher.timeout_min=5"],
+    "joblib": ["hydra/launcher=parallel", "torch_threads=1"],
+}
 
 
 @pytest.mark.slow
-def test_parallel_multirun_through_joblib(tmp_path: Path) -> None:
+@pytest.mark.parametrize("launcher", sorted(LAUNCHERS))
+def test_two_job_multirun_completes(launcher: str, tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     done = run_cli("-m", "+experiment=mountaincar_data", "seed=0,1", f"runs_dir={runs}", "progress=false",
-                   "hydra/launcher=parallel", "torch_threads=1")
+                   *LAUNCHERS[launcher])
     assert done.returncode == 0, done.stderr[-2000:]
     assert statuses(runs) == ["done", "done"]
 
