@@ -1,0 +1,243 @@
+"""The results collector on synthetic run directories: numbers checked against values computed by
+hand, broken inputs reported (never a crash, never a write under the runs dir), every registry id
+rendered, and the CLI."""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.image import imread
+
+from plls_bench.report import BY_ID, ENTRIES, render_all
+from plls_bench.report.__main__ import main as report_main
+from plls_bench.report.base import Options
+from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.load import Runs
+from plls_bench.report.plot import DPI
+from tests.conftest import REPO_ROOT
+from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_npz, write_params,
+                                  write_repr)
+
+ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
+PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9}
+PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)]}
+
+
+def build_hand_runs(runs_dir: Path, budget: str = "quick") -> None:
+    """CarRacing PL-LS and PPO with known curves and counts, V_a with known MSEs, a filmstrip."""
+    for experiment, curves, params in (("carracing_plls_ppo", PLLS_RETURNS, (8802, 4394)),
+                                       ("carracing_ppo", PPO_RETURNS, (3_289_768, 1_644_878))):
+        for seed, curve in curves.items():
+            run, cfg = make_run(runs_dir, experiment, seed, budget)
+            write_eval(run, cfg, ITERATIONS, [[r - 1, r + 1] for r in curve])  # episode mean = r
+            write_params(run, *params)
+            finish(run, cfg)
+    for seed, (mse, artifact) in enumerate([(0.010, "a"), (0.014, "b"), (0.010, "a")]):  # 2 distinct models
+        run, cfg = make_run(runs_dir, "mountaincar_va", seed, budget)
+        write_repr(run, "action", 3, mse, artifact)
+        finish(run, cfg)
+    run, cfg = make_run(runs_dir, "mountaincar_plls_ppo", 0, budget)
+    write_filmstrip(run, frames=18, interval=4, steps_to_goal=70)
+    finish(run, cfg)
+
+
+def tree_state(root: Path) -> dict[str, tuple]:
+    """Every path under ``root`` with its bytes' digest, size and mtime (files) or 'dir'."""
+    state = {}
+    for path in sorted(root.rglob("*")):
+        rel = str(path.relative_to(root))
+        if path.is_dir():
+            state[rel] = ("dir",)
+        else:
+            stat = path.stat()
+            state[rel] = (hashlib.sha256(path.read_bytes()).hexdigest(), stat.st_size, stat.st_mtime_ns)
+    return state
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    header = path.read_bytes()[:24]
+    assert header[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
+    return struct.unpack(">II", header[16:24])
+
+
+@pytest.fixture(scope="module")
+def hand(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    root = tmp_path_factory.mktemp("hand")
+    build_hand_runs(root / "runs")
+    statuses = render_all(root / "runs", root / "out", only=["table3", "fig18", "claims"])
+    return root / "out", statuses
+
+
+def test_table3_numbers_match_hand_computation(hand) -> None:
+    out, statuses = hand
+    table = pd.read_csv(out / "tables" / "table3.csv").set_index("experiment")
+    plls, ppo = table.loc["carracing_plls_ppo"], table.loc["carracing_ppo"]
+    assert (plls["total_parameters"], plls["trainable_parameters"]) == (8802, 4394)
+    assert (ppo["total_parameters"], ppo["trainable_parameters"]) == (3_289_768, 1_644_878)
+    assert (plls["paper_total_parameters"], plls["paper_sampled_frequency"]) == (8710, 3750)
+    # Mean curve 0, 50, 90, 100, ...: smoothed (trailing 5) 88 at evaluation 5, 98 at 6 -> converged at
+    # evaluation 6 = iteration 12 = 12 x 16 envs x 1000 steps. Resampling the two trials: seed 0 alone
+    # converges at evaluation 6 too, seed 1 alone at 5 (iteration 10): CI [10, 12].
+    assert (plls["converged_iteration"], plls["converged_iteration_ci_low"], plls["converged_iteration_ci_high"]) == (12, 10, 12)
+    assert plls["converged_env_steps"] == 192_000 and plls["converged_env_steps_ci_low"] == 160_000
+    assert plls["converged_env_steps_per_env"] == 12_000  # the paper's Sampled_Frequency
+    # PPO rises by 5 per evaluation to the end: never within 5% for 5 evaluations
+    assert math.isinf(ppo["converged_iteration"]) and math.isinf(ppo["converged_iteration_ci_low"])
+    assert "not converged by 22" in (out / "tables" / "table3.md").read_text()
+    assert statuses["table3"].status == "ok"
+
+
+def test_figure_data_mean_std_and_ci_match_hand_computation(hand) -> None:
+    out, _ = hand
+    data = pd.read_csv(out / "figures" / "fig18.csv")
+    plls = data[data["series"] == "PL-LS + PPO"].set_index("x")
+    ppo = data[data["series"] == "PPO"].set_index("x")
+    # iteration 2: PL-LS trials returned 20 and 80. Two trials' bootstrap CI is exactly their range.
+    assert plls.loc[2.0, ["n", "mean", "ci_low", "ci_high"]].tolist() == [2, 50, 20, 80]
+    assert plls.loc[2.0, "std"] == pytest.approx(60 / math.sqrt(2))
+    assert plls.loc[0.0, ["mean", "std", "ci_low", "ci_high"]].tolist() == [0, 0, 0, 0]
+    assert ppo.loc[4.0, ["mean", "ci_low", "ci_high"]].tolist() == [15, 10, 20]
+    assert len(plls) == len(ppo) == 12 and (data["x_axis"] == "iteration").all()
+
+
+def claim(out: Path, text: str) -> pd.Series:
+    claims = pd.read_csv(out / "tables" / "claims.csv")
+    return claims[claims["claim"].str.startswith(text)].iloc[0]
+
+
+def test_claims_table_matches_hand_computation(hand) -> None:
+    out, _ = hand
+    assert claim(out, "PL-LS with PPO: total parameters")["verdict"] == "not reproduced"  # 8802 vs 8710
+    assert claim(out, "PPO: total parameters")["verdict"] == "reproduced"
+    samples = claim(out, "PL-LS with PPO: samples per env")
+    assert (samples["suite_value"], samples["ci_low"], samples["ci_high"]) == (12_000, 10_000, 12_000)
+    assert samples["verdict"] == "not reproduced"  # converged after 10,000-12,000 steps per env > 3,750
+    assert claim(out, "PPO: not converged")["verdict"] == "reproduced"
+    beats = claim(out, "PL-LS with PPO beats PPO on CarRacing")
+    assert (beats["suite_value"], beats["ci_low"], beats["ci_high"], beats["verdict"]) == (1, 1, 1, "reproduced")
+    assert beats["budget"] == "quick (2 + 2 trials)"
+    # std over trials: PPO 10/sqrt(2) at every evaluation; PL-LS 60/sqrt(2) and 20/sqrt(2) at two of
+    # twelve. Each method's resample is either both seeds (those stds) or one seed twice (std 0).
+    variance = claim(out, "PPO has the larger variance")
+    ppo_std, plls_std = 10 / math.sqrt(2), (60 + 20) / math.sqrt(2) / 12
+    assert variance["suite_value"] == pytest.approx(ppo_std - plls_std)
+    assert (variance["ci_low"], variance["ci_high"]) == pytest.approx((-plls_std, ppo_std))
+    assert variance["verdict"] == "inconclusive"
+    mse = claim(out, "V_a test MSE on MountainCar")  # models a (0.010, two trials) and b (0.014)
+    assert (mse["suite_value"], mse["ci_low"], mse["ci_high"]) == pytest.approx((0.012, 0.010, 0.014))
+    assert mse["verdict"] == "reproduced" and "2 models" in mse["suite"]
+    assert claim(out, "Learned MountainCar policy")["verdict"] == "reproduced"  # 70 steps <= 85
+    assert claim(out, "PL-LS with DBC obtains")["verdict"] == "not run at this budget"
+
+
+def test_smoke_budget_claims_are_not_judged(tmp_path: Path) -> None:
+    build_hand_runs(tmp_path / "runs", budget="smoke")
+    render_all(tmp_path / "runs", tmp_path / "out", only=["claims"])
+    assert claim(tmp_path / "out", "PL-LS with PPO beats PPO on CarRacing")["verdict"] == "not run at this budget"
+    assert claim(tmp_path / "out", "PPO: total parameters")["verdict"] == "reproduced"  # counts: any budget
+
+
+def break_runs(runs: Path) -> None:
+    """Every kind of damage the collector must survive and report."""
+    (runs / "carracing_plls_ppo" / "default" / "seed=2").mkdir()  # an empty run dir
+    (runs / "carracing_plls_ppo" / "default" / "seed=1" / "status.json").unlink()
+    eval_path = runs / "carracing_ppo" / "default" / "seed=1" / "metrics" / "eval.jsonl"
+    text = eval_path.read_text()
+    eval_path.write_text(text[: len(text) - len(text.splitlines()[-1]) // 2 - 1])  # killed mid-line
+    run, cfg = make_run(runs, "cheetah_dbc", 0)  # seed 1 of 2 missing; this one failed after 3 evaluations
+    write_eval(run, cfg, [0, 1000, 2000], [[1.0], [2.0], [3.0]])
+    with open(run.metrics_path("eval"), "a") as handle:
+        handle.write("not json\n")
+    finish(run, cfg, "failed")
+    run, cfg = make_run(runs, "carracing_va", 0)
+    run.write_bytes("samples/action_reconstructions.npz", b"PK\x03\x04 not a zip")
+    finish(run, cfg)
+
+
+def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) -> None:
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    build_hand_runs(runs)
+    break_runs(runs)
+    before = tree_state(runs)
+    statuses = render_all(runs, out)
+    assert tree_state(runs) == before, "the collector must not write, touch or delete anything under runs/"
+    assert not [s.id for s in statuses.values() if s.status == "error"], [s.error for s in statuses.values()]
+    readme = (out / "README.md").read_text()
+    for gap in ("carracing_plls_ppo/default seed=2: empty run dir",
+                "carracing_plls_ppo/default seed=1: status.json missing or unreadable",
+                "carracing_ppo/default seed=1: metrics/eval.jsonl: truncated last line skipped",
+                "carracing_ppo/default seed=1: curve ends before the method's last evaluation",
+                "cheetah_dbc/default: seed(s) 1 missing (budget.trials=2)",
+                "cheetah_dbc/default seed=0: status failed (RuntimeError: boom)",
+                "cheetah_dbc/default seed=0: metrics/eval.jsonl: 1 corrupt line(s) skipped",
+                "carracing_va/default seed=0: samples/action_reconstructions.npz missing or unreadable",
+                "carracing_ppo_vs/default: no runs"):
+        assert gap in readme, gap
+    assert statuses["fig18"].status == "partial" and statuses["fig18"].trials == {"PL-LS + PPO": 2, "PPO": 2}
+    assert statuses["fig21"].trials == {"PL-LS + DBC": 0, "DBC": 1} and statuses["fig16"].status == "empty"
+    last = pd.read_csv(out / "figures" / "fig18.csv").groupby("series").last()
+    assert last.loc["PPO", "n"] == 1  # the truncated trial lost its last evaluation
+    fig = BY_ID["fig18"].build(Runs(runs), BY_ID["fig18"], Options("iteration", PAPER_DIR)).figure
+    assert "PL-LS + PPO: 2 trials, PPO: 2 trials" in fig.get_suptitle()
+
+
+@pytest.mark.slow
+def test_every_registry_id_renders_from_synthetic_runs(tmp_path: Path) -> None:
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    build_all(runs)
+    statuses = render_all(runs, out)
+    assert list(statuses) == [e.id for e in ENTRIES]
+    assert {i: (s.status, s.gaps, s.error) for i, s in statuses.items() if s.status != "ok"} == {}
+    readme = (out / "README.md").read_text()
+    for entry in ENTRIES:
+        if entry.kind == "figure":
+            png = out / "figures" / f"{entry.id}.png"
+            assert png_size(png) == (round(entry.size[0] * DPI), round(entry.size[1] * DPI)), entry.id
+            assert np.ptp(imread(png)[..., :3]) > 0, f"{entry.id}: a blank image"
+            assert (out / "figures" / f"{entry.id}.pdf").read_bytes()[:4] == b"%PDF"
+            assert len(pd.read_csv(out / "figures" / f"{entry.id}.csv")) > 0
+            assert f"](figures/{entry.id}.png)" in readme
+        else:
+            assert (out / "tables" / f"{entry.id}.md").read_text().strip() in readme
+            assert r"\begin{tabular}" in (out / "tables" / f"{entry.id}.tex").read_text()
+            assert len(pd.read_csv(out / "tables" / f"{entry.id}.csv")) > 0
+    assert "Budget profile: **quick**" in readme
+
+
+def report_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "plls_bench.report", "--no-progress", *args], cwd=REPO_ROOT,
+                          env={**os.environ, "PYTHONUNBUFFERED": "1"}, capture_output=True, text=True, timeout=300)
+
+
+def test_cli_lists_the_registry_and_renders_one_id(tmp_path: Path) -> None:
+    listing = report_cli("--list")
+    assert listing.returncode == 0 and all(f"{e.id} " in listing.stdout for e in ENTRIES)
+    assert "carracing_ppo_vs, carracing_ppo_va" in listing.stdout  # Fig 20's presets
+    build_hand_runs(tmp_path / "runs")
+    done = report_cli("--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--only", "fig18")
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in (tmp_path / "out" / "figures").iterdir()) == ["fig18.csv", "fig18.pdf", "fig18.png"]
+    assert "not rendered yet" in (tmp_path / "out" / "README.md").read_text()
+
+
+@pytest.mark.parametrize(("args", "message"), [(["--only", "fig99"], "unknown id(s) fig99"),
+                                               (["--out", "{runs}/x"], "lies inside --runs"),
+                                               (["--runs", "{runs}/nope"], "no such directory")])
+def test_cli_refuses_bad_input_before_writing(tmp_path: Path, args: list[str], message: str,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    args = [a.format(runs=runs) for a in args]
+    defaults = [] if "--runs" in args else ["--runs", str(runs)]
+    defaults += [] if "--out" in args else ["--out", str(tmp_path / "out")]
+    assert report_main([*defaults, *args, "--no-progress"]) == 2  # in-process: the same code path, no import cost
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists() and list(runs.iterdir()) == []
