@@ -6,7 +6,6 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -14,12 +13,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from matplotlib.image import imread
 
 from plls_bench.report import BY_ID, ENTRIES, render_all
 from plls_bench.report.__main__ import main as report_main
 from plls_bench.report.base import Options
-from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI
 from tests.conftest import REPO_ROOT
@@ -62,18 +60,25 @@ def tree_state(root: Path) -> dict[str, tuple]:
     return state
 
 
-def png_size(path: Path) -> tuple[int, int]:
-    header = path.read_bytes()[:24]
-    assert header[:8] == b"\x89PNG\r\n\x1a\n", f"{path} is not a PNG"
-    return struct.unpack(">II", header[16:24])
-
-
 @pytest.fixture(scope="module")
 def hand(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     root = tmp_path_factory.mktemp("hand")
     build_hand_runs(root / "runs")
     statuses = render_all(root / "runs", root / "out", only=["table3", "fig18", "claims"])
     return root / "out", statuses
+
+
+def test_curves_on_every_x_axis(hand, tmp_path: Path) -> None:
+    runs = hand[0].parent / "runs"
+    for axis, per_iteration in (("env_steps", 16 * 1000), ("env_steps_per_env", 1000)):  # Table 2: 16 envs x 1000
+        render_all(runs, tmp_path / axis, only=["fig18"], x_axis=axis)
+        data = pd.read_csv(tmp_path / axis / "figures" / "fig18.csv")
+        assert sorted(set(data["x"])) == [i * per_iteration for i in ITERATIONS] and (data["x_axis"] == axis).all()
+    render_all(runs, tmp_path / "wall", only=["fig18"], x_axis="wall_s")  # evaluations at 1.5 s per iteration
+    data = pd.read_csv(tmp_path / "wall" / "figures" / "fig18.csv")
+    plls = data[data["series"] == "PL-LS + PPO"]
+    assert plls["x"].iloc[-1] == 33.0 and (plls["n"] == 2).all()
+    assert plls["mean"].iloc[-1] == 100.0 and np.interp(3.0, plls["x"], plls["mean"]) == pytest.approx(50, abs=5)  # iteration 2
 
 
 def test_table3_numbers_match_hand_computation(hand) -> None:
@@ -196,20 +201,30 @@ def test_every_registry_id_renders_from_synthetic_runs(tmp_path: Path) -> None:
     statuses = render_all(runs, out)
     assert list(statuses) == [e.id for e in ENTRIES]
     assert {i: (s.status, s.gaps, s.error) for i, s in statuses.items() if s.status != "ok"} == {}
+    assert verify_outputs(out, statuses) == []
     readme = (out / "README.md").read_text()
     for entry in ENTRIES:
         if entry.kind == "figure":
-            png = out / "figures" / f"{entry.id}.png"
-            assert png_size(png) == (round(entry.size[0] * DPI), round(entry.size[1] * DPI)), entry.id
-            assert np.ptp(imread(png)[..., :3]) > 0, f"{entry.id}: a blank image"
-            assert (out / "figures" / f"{entry.id}.pdf").read_bytes()[:4] == b"%PDF"
+            assert png_size(out / "figures" / f"{entry.id}.png") == (entry.size[0] * DPI, entry.size[1] * DPI)
             assert len(pd.read_csv(out / "figures" / f"{entry.id}.csv")) > 0
             assert f"](figures/{entry.id}.png)" in readme
         else:
             assert (out / "tables" / f"{entry.id}.md").read_text().strip() in readme
             assert r"\begin{tabular}" in (out / "tables" / f"{entry.id}.tex").read_text()
-            assert len(pd.read_csv(out / "tables" / f"{entry.id}.csv")) > 0
     assert "Budget profile: **quick**" in readme
+
+
+def test_output_check_catches_a_wrong_size_and_a_blank_image(tmp_path: Path) -> None:
+    from plls_bench.report.plot import new_figure, save_figure
+
+    (tmp_path / "runs").mkdir()
+    statuses = render_all(tmp_path / "runs", tmp_path / "out", only=["fig18", "fig21"])  # no runs: placeholders
+    assert verify_outputs(tmp_path / "out", statuses) == []
+    save_figure(new_figure((3.0, 2.0)), tmp_path / "out" / "figures" / "fig18")  # blank, and too small
+    fig = new_figure(BY_ID["fig21"].size)
+    save_figure(fig, tmp_path / "out" / "figures" / "fig21")  # right size, blank
+    assert verify_outputs(tmp_path / "out", statuses) == ["fig18: fig18.png missing or not 700x450 pixels",
+                                                           "fig21: fig21.png is blank"]
 
 
 def report_cli(*args: str) -> subprocess.CompletedProcess[str]:

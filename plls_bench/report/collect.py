@@ -4,16 +4,18 @@ what they draw), tables (Markdown, LaTeX, CSV), ``index.json`` (per-id status) a
 from __future__ import annotations
 
 import logging
+import struct
 import traceback
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Iterable
 
+import numpy as np
 from tqdm import tqdm
 
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.load import Runs
-from plls_bench.report.plot import save_figure
+from plls_bench.report.plot import DPI, save_figure
 from plls_bench.report.readme import write_readme
 from plls_bench.report.registry import BY_ID, ENTRIES
 from plls_bench.report.returns import X_AXES
@@ -126,3 +128,41 @@ def _merge_index(path: Path, rendered: dict[str, IdStatus]) -> list[IdStatus]:
     return [rendered.get(e.id) or previous.get(e.id) or
             IdStatus(e.id, e.ref, e.title, e.kind, "empty", list(e.experiments), e.reads,
                      gaps=["not rendered yet: run the collector without --only"]) for e in ENTRIES]
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from a PNG's header."""
+    header = path.read_bytes()[:24]
+    if header[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"{path} is not a PNG")
+    return struct.unpack(">II", header[16:24])
+
+
+def verify_outputs(out_dir: str | Path, statuses: dict[str, IdStatus]) -> list[str]:
+    """What is wrong with the files ``render_all`` wrote (an empty list when nothing is): every
+    figure a non-blank PNG of its registry size (inches x DPI) with its PDF and data CSV, every
+    table in Markdown, LaTeX and CSV. For tests over synthetic and smoke-profile runs."""
+    from matplotlib.image import imread
+
+    out_dir, problems = Path(out_dir), []
+    for id_, status in statuses.items():
+        entry = BY_ID[id_]
+        if status.status == "error":
+            problems.append(f"{id_}: {status.error}")
+            continue
+        if entry.kind == "table":
+            base = out_dir / "tables" / id_
+            problems += [f"{id_}: {base.name}.{ext} missing or empty" for ext in ("md", "tex", "csv")
+                         if not base.with_suffix(f".{ext}").is_file() or not base.with_suffix(f".{ext}").stat().st_size]
+            continue
+        png, want = out_dir / "figures" / f"{id_}.png", (round(entry.size[0] * DPI), round(entry.size[1] * DPI))
+        if not png.is_file() or png_size(png) != want:
+            problems.append(f"{id_}: {png.name} missing or not {want[0]}x{want[1]} pixels")
+        elif float(np.ptp(imread(png)[..., :3])) == 0:
+            problems.append(f"{id_}: {png.name} is blank")
+        pdf = out_dir / "figures" / f"{id_}.pdf"
+        if not pdf.is_file() or pdf.read_bytes()[:4] != b"%PDF":
+            problems.append(f"{id_}: {pdf.name} missing or not a PDF")
+        if status.status != "empty" and not (out_dir / "figures" / f"{id_}.csv").is_file():
+            problems.append(f"{id_}: {id_}.csv (the plotted data) missing")
+    return problems

@@ -42,7 +42,8 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
     for source, curves in methods:
         if curves.n:
             frame = _band_frame(source.label, source.experiment, opts.x_axis, curves.grid, curves.values)
-            _draw_band(ax, frame, source.color, f"{source.label} ({curves.n})")
+            early = int((~curves.complete_seeds()).sum())
+            _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{f', {early} stop early' if early else ''})")
             frames.append(frame)
     first = next(c for _, c in methods if c.n)
     ax.set_xlabel(x_label(first.experiment, opts.x_axis))

@@ -34,7 +34,8 @@ def save_figure(fig: Figure, base: Path) -> list[Path]:
     paths = []
     for ext in ("png", "pdf"):
         buffer = io.BytesIO()
-        fig.savefig(buffer, format=ext, dpi=DPI)
+        # no creation date in the PDF: regenerating unchanged results gives unchanged files
+        fig.savefig(buffer, format=ext, dpi=DPI, metadata={"CreationDate": None} if ext == "pdf" else None)
         path = base.with_suffix(f".{ext}")
         atomic_write_bytes(path, buffer.getvalue())
         paths.append(path)
