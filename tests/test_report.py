@@ -256,3 +256,15 @@ def test_cli_refuses_bad_input_before_writing(tmp_path: Path, args: list[str], m
     assert report_main([*defaults, *args, "--no-progress"]) == 2  # in-process: the same code path, no import cost
     assert message in capsys.readouterr().err
     assert not (tmp_path / "out").exists() and list(runs.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_reproduce_runs_the_collector_after_the_presets(tmp_path: Path) -> None:
+    from plls_bench.reproduce import main as reproduce_main
+
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    assert reproduce_main(["--profile", "smoke", "--only", "mountaincar_data", "--runs", str(runs),
+                           "--out", str(out)]) == 0
+    assert (runs / "mountaincar_data" / "default" / "seed=0" / "status.json").is_file()
+    readme = (out / "README.md").read_text()
+    assert "Budget profile: **smoke**" in readme and "mountaincar_ppo/default: no runs" in readme
