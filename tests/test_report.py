@@ -268,3 +268,16 @@ def test_reproduce_runs_the_collector_after_the_presets(tmp_path: Path) -> None:
     assert (runs / "mountaincar_data" / "default" / "seed=0" / "status.json").is_file()
     readme = (out / "README.md").read_text()
     assert "Budget profile: **smoke**" in readme and "mountaincar_ppo/default: no runs" in readme
+
+
+def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    for path in PAPER_DIR.glob("*.csv"):
+        (paper / path.name).write_text(path.read_text())
+    claims = (paper / "claims.csv").read_text().splitlines()
+    (paper / "claims.csv").write_text("\n".join([claims[0], claims[1].replace("repr_mse", "repr_mse_typo"), *claims[2:]]))
+    (tmp_path / "runs").mkdir()
+    assert report_main(["--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--paper", str(paper)]) == 2
+    assert "claims.csv line 2: unknown kind 'repr_mse_typo'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -214,9 +215,9 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str]
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason
 
 
-def read_claims(opts: Options) -> list[dict[str, str]]:
+def read_claims(paper_dir: Path) -> list[dict[str, str]]:
     """``claims.csv``, checked so that a typo fails loudly naming the row."""
-    rows = read_paper(opts.paper_dir, "claims")
+    rows = read_paper(paper_dir, "claims")
     for line, row in enumerate(rows, 2):
         allowed = {"kind": tuple(KINDS), "rule": RULES, "min_budget": BUDGET_ORDER}
         problems = [f"{key} {row[key]!r}" for key, values in allowed.items() if row[key] not in values]
@@ -225,14 +226,14 @@ def read_claims(opts: Options) -> list[dict[str, str]]:
         except ValueError:
             problems.append(f"threshold {row['threshold']!r}")
         if problems:
-            raise ValueError(f"{opts.paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
+            raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     return rows
 
 
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     """The "paper vs suite" table: every claim of ``claims.csv`` with the suite's value and verdict."""
     rows, records = [], []
-    for claim in read_claims(opts):
+    for claim in read_claims(opts.paper_dir):
         est, outcome, reason = judge(runs, claim)
         rows.append([claim["claim"], claim["paper"], est.text if est else NA, est.budget if est else NA,
                      outcome, reason, claim["source"]])

@@ -14,16 +14,17 @@ import numpy as np
 from tqdm import tqdm
 
 from plls_bench.report.base import Entry, Options, Output
+from plls_bench.report.claims import read_claims
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI, save_figure
 from plls_bench.report.readme import write_readme
 from plls_bench.report.registry import BY_ID, ENTRIES
 from plls_bench.report.returns import X_AXES
+from plls_bench.report.tables import PAPER_COLUMNS, read_paper
 from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
 
 log = logging.getLogger(__name__)
 PAPER_DIR = Path(__file__).resolve().parents[2] / "results" / "paper"
-PAPER_FILES = ("table1", "table2", "table3", "claims")
 STATUSES = ("ok", "partial", "empty", "error")  # partial = drawn, with gaps; empty = nothing to draw
 
 
@@ -58,9 +59,15 @@ def check_inputs(runs_dir: Path, out_dir: Path, only: Iterable[str] | None, x_ax
         raise ReportError(f"--only: unknown id(s) {', '.join(unknown)}; known: {', '.join(BY_ID)}")
     if x_axis not in X_AXES:
         raise ReportError(f"--x-axis {x_axis!r}: choose one of {', '.join(X_AXES)}")
-    missing = [name for name in PAPER_FILES if not (paper_dir / f"{name}.csv").is_file()]
+    missing = [name for name in PAPER_COLUMNS if not (paper_dir / f"{name}.csv").is_file()]
     if missing:
         raise ReportError(f"--paper {paper_dir}: missing {', '.join(f'{m}.csv' for m in missing)}")
+    try:
+        for name in PAPER_COLUMNS:
+            read_paper(paper_dir, name)
+        read_claims(paper_dir)
+    except ValueError as err:
+        raise ReportError(f"--paper: {err}") from err
 
 
 def write_output(entry: Entry, output: Output, out_dir: Path) -> list[str]:

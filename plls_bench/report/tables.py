@@ -90,12 +90,26 @@ def fmt_ci(value: float, interval: tuple[float, float], digits: int = 4) -> str:
 
 
 # --------------------------------------------------------------------------- paper numbers
+HYPER_COLUMNS = ("hyperparameter", "key", "paper_value", "paper_baseline", "source")
+PAPER_COLUMNS = {
+    "table1": HYPER_COLUMNS, "table2": HYPER_COLUMNS,
+    "table3": ("model", "experiment", "total_parameters", "trainable_parameters", "sampled_frequency", "source"),
+    "claims": ("claim", "entry", "kind", "experiment", "baseline", "param", "paper", "rule", "threshold",
+               "threshold_high", "x_axis", "from_x", "needs_x", "min_budget", "source"),
+}
+
+
 def read_paper(paper_dir: Path, name: str) -> list[dict[str, str]]:
-    """Rows of ``<paper_dir>/<name>.csv``; every row cites its table, figure or section."""
+    """Rows of ``<paper_dir>/<name>.csv`` (one of :data:`PAPER_COLUMNS`), each citing its source;
+    ValueError naming the file and line for a missing column or citation."""
     path = paper_dir / f"{name}.csv"
     with open(path, newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    missing = [i for i, row in enumerate(rows, 2) if not (row.get("source") or "").strip()]
+        reader = csv.DictReader(handle)
+        missing = [c for c in PAPER_COLUMNS[name] if c not in (reader.fieldnames or [])]
+        rows = list(reader)
     if missing:
-        raise ValueError(f"{path}: line(s) {missing} have no source citation")
+        raise ValueError(f"{path}: missing column(s) {', '.join(missing)}")
+    uncited = [i for i, row in enumerate(rows, 2) if not (row.get("source") or "").strip()]
+    if uncited:
+        raise ValueError(f"{path}: line(s) {uncited} have no source citation")
     return rows
