@@ -54,7 +54,8 @@ def make_run(runs_dir: Path, experiment: str, seed: int, budget: str = "quick") 
 
 
 def finish(run: Run, cfg: Config, state: str = STATUS_DONE) -> None:
-    run.write_status(state, config_hash=config_hash(cfg), **({"error": "RuntimeError: boom"} if state == "failed" else {}))
+    error = {"error": "RuntimeError: boom"} if state == "failed" else {}
+    run.write_status(state, config_hash=config_hash(cfg), **error)
 
 
 def write_npz(run: Run, relpath: str, **arrays: np.ndarray) -> None:
@@ -133,12 +134,14 @@ def write_study(run: Run, study: str, rng: np.random.Generator) -> None:
     run.write_json("metrics/study.json", {"reconstruction_mse": 0.0004, "n_actions": len(actions)})
 
 
-def write_filmstrip(run: Run, frames: int, interval: int, steps_to_goal: int | None, hw: tuple[int, int] = (40, 60)) -> None:
+def write_filmstrip(run: Run, frames: int, interval: int, steps_to_goal: int | None,
+                    hw: tuple[int, int] = (40, 60)) -> None:
     images = np.zeros((frames, *hw, 3), dtype=np.uint8)
     images[..., 1] = np.linspace(0, 255, frames, dtype=np.uint8)[:, None, None]
     write_npz(run, "filmstrip/frames.npz", frames=images)
-    run.write_json("filmstrip/filmstrip.json", {"interval": interval, "frame_steps": [i * interval for i in range(frames)],
-                                                "episode_return": 93.5, "steps_to_goal": steps_to_goal})
+    run.write_json("filmstrip/filmstrip.json", {"interval": interval, "episode_return": 93.5,
+                                                "frame_steps": [i * interval for i in range(frames)],
+                                                "steps_to_goal": steps_to_goal})
 
 
 def write_samples(run: Run, rng: np.random.Generator) -> None:

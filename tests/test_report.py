@@ -21,7 +21,7 @@ from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI
 from tests.conftest import REPO_ROOT
-from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_npz, write_params,
+from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_params,
                                   write_repr)
 
 ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
@@ -78,7 +78,8 @@ def test_curves_on_every_x_axis(hand, tmp_path: Path) -> None:
     data = pd.read_csv(tmp_path / "wall" / "figures" / "fig18.csv")
     plls = data[data["series"] == "PL-LS + PPO"]
     assert plls["x"].iloc[-1] == 33.0 and (plls["n"] == 2).all()
-    assert plls["mean"].iloc[-1] == 100.0 and np.interp(3.0, plls["x"], plls["mean"]) == pytest.approx(50, abs=5)  # iteration 2
+    assert plls["mean"].iloc[-1] == 100.0
+    assert np.interp(3.0, plls["x"], plls["mean"]) == pytest.approx(50, abs=5)  # iteration 2
 
 
 def test_table3_numbers_match_hand_computation(hand) -> None:
@@ -91,7 +92,8 @@ def test_table3_numbers_match_hand_computation(hand) -> None:
     # Mean curve 0, 50, 90, 100, ...: smoothed (trailing 5) 88 at evaluation 5, 98 at 6 -> converged at
     # evaluation 6 = iteration 12 = 12 x 16 envs x 1000 steps. Resampling the two trials: seed 0 alone
     # converges at evaluation 6 too, seed 1 alone at 5 (iteration 10): CI [10, 12].
-    assert (plls["converged_iteration"], plls["converged_iteration_ci_low"], plls["converged_iteration_ci_high"]) == (12, 10, 12)
+    assert plls[["converged_iteration", "converged_iteration_ci_low", "converged_iteration_ci_high"]].tolist() == [
+        12, 10, 12]
     assert plls["converged_env_steps"] == 192_000 and plls["converged_env_steps_ci_low"] == 160_000
     assert plls["converged_env_steps_per_env"] == 12_000  # the paper's Sampled_Frequency
     # PPO rises by 5 per evaluation to the end: never within 5% for 5 evaluations
@@ -239,7 +241,8 @@ def test_cli_lists_the_registry_and_renders_one_id(tmp_path: Path) -> None:
     build_hand_runs(tmp_path / "runs")
     done = report_cli("--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--only", "fig18")
     assert done.returncode == 0, done.stderr
-    assert sorted(p.name for p in (tmp_path / "out" / "figures").iterdir()) == ["fig18.csv", "fig18.pdf", "fig18.png"]
+    figures = sorted(p.name for p in (tmp_path / "out" / "figures").iterdir())
+    assert figures == ["fig18.csv", "fig18.pdf", "fig18.png"]
     assert "not rendered yet" in (tmp_path / "out" / "README.md").read_text()
 
 
@@ -276,8 +279,10 @@ def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: p
     for path in PAPER_DIR.glob("*.csv"):
         (paper / path.name).write_text(path.read_text())
     claims = (paper / "claims.csv").read_text().splitlines()
-    (paper / "claims.csv").write_text("\n".join([claims[0], claims[1].replace("repr_mse", "repr_mse_typo"), *claims[2:]]))
+    claims[1] = claims[1].replace("repr_mse", "repr_mse_typo")
+    (paper / "claims.csv").write_text("\n".join(claims))
     (tmp_path / "runs").mkdir()
-    assert report_main(["--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--paper", str(paper)]) == 2
+    args = ["--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--paper", str(paper)]
+    assert report_main(args) == 2
     assert "claims.csv line 2: unknown kind 'repr_mse_typo'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()

@@ -63,7 +63,7 @@ def test_bootstrap_ci_needs_two_trials() -> None:
 
 def test_bootstrap_ci_matches_exact_enumeration_of_all_resamples() -> None:
     data = np.array([0.0, 1.0, 3.0, 10.0])
-    means = np.sort([data[list(idx)].mean() for idx in itertools.product(range(4), repeat=4)])  # 256 equally likely
+    means = np.sort([data[list(i)].mean() for i in itertools.product(range(4), repeat=4)])  # 256 equally likely
     exact = (np.percentile(means, 2.5, method="inverted_cdf"), np.percentile(means, 97.5, method="inverted_cdf"))
     low, high = bootstrap_ci([data], lambda s: s.mean(axis=-1), n_resamples=20_000)
     assert low == pytest.approx(exact[0], abs=0.26) and high == pytest.approx(exact[1], abs=0.26)  # one 0.25 step
@@ -106,7 +106,8 @@ def test_batched_probability_of_improvement_equals_rliable() -> None:
 
 
 def test_align_matches_exact_x_and_interpolates_wall_time() -> None:
-    grid, values = align([(np.array([0, 2, 4.0]), np.array([1, 2, 3.0])), (np.array([0, 2.0]), np.array([5, 6.0]))])
+    first, second = (np.array([0, 2, 4.0]), np.array([1, 2, 3.0])), (np.array([0, 2.0]), np.array([5, 6.0]))
+    grid, values = align([first, second])
     assert grid.tolist() == [0, 2, 4]
     assert np.array_equal(values, np.array([[1, 2, 3], [5, 6, np.nan]]), equal_nan=True)
     grid, values = align([(np.array([0, 10.0]), np.array([0, 10.0]))], interpolate=True, points=3)

@@ -69,8 +69,9 @@ def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
         raise NotJudged(f"no test MSE of model {model} in {exp.name}")
     s = summarise(np.array(list(values.values())))
     text = f"{fmt(s.mean)} ± {fmt(s.std)} ({s.n} model{'s' if s.n > 1 else ''})"
-    return Estimate(s.mean, s.mean_ci, text + ("" if math.isnan(s.mean_ci[0]) else f", CI [{fmt(s.mean_ci[0])}, {fmt(s.mean_ci[1])}]"),
-                    _budget(runs, exp.name))
+    if not math.isnan(s.mean_ci[0]):
+        text += f", CI [{fmt(s.mean_ci[0])}, {fmt(s.mean_ci[1])}]"
+    return Estimate(s.mean, s.mean_ci, text, _budget(runs, exp.name))
 
 
 def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -88,8 +89,8 @@ def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
     if trial is None:
         raise NotJudged(f"no filmstrip in {exp.name}")
     value = math.inf if not isinstance(steps, (int, float)) else float(steps)
-    return Estimate(value, NAN2, "goal not reached" if math.isinf(value) else f"{fmt(value)} steps (seed {trial.seed})",
-                    _budget(runs, exp.name, n=[1]))
+    text = "goal not reached" if math.isinf(value) else f"{fmt(value)} steps (seed {trial.seed})"
+    return Estimate(value, NAN2, text, _budget(runs, exp.name, n=[1]))
 
 
 def convergence_point(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -111,6 +112,10 @@ def _pair(runs: Runs, claim: dict[str, str]) -> tuple[np.ndarray, np.ndarray, np
     return grid, mats[0], mats[1]
 
 
+def _pair_budget(runs: Runs, claim: dict[str, str], a: np.ndarray, b: np.ndarray) -> str:
+    return _budget(runs, claim["experiment"], claim["baseline"], n=[len(a), len(b)])
+
+
 def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
     """x from which A's mean return stays above B's; inf if A is not ahead at the end."""
     grid, a, b = _pair(runs, claim)
@@ -122,8 +127,8 @@ def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
     value = stat(a, b)
     ci = bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False)
     text = "not ahead at the end" if math.isinf(value) else f"ahead from {fmt(value)}"
-    return Estimate(value, (float(ci[0]), float(ci[1])), text + _ci_text(ci),
-                    _budget(runs, claim["experiment"], claim["baseline"], n=[len(a), len(b)]), reach=float(grid[-1]))
+    return Estimate(value, (float(ci[0]), float(ci[1])), text + _ci_text(ci), _pair_budget(runs, claim, a, b),
+                    reach=float(grid[-1]))
 
 
 def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -137,9 +142,9 @@ def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
         return float(np.mean(y[:, keep].std(axis=0, ddof=1) - x[:, keep].std(axis=0, ddof=1)))
 
     value = stat(a, b)
-    ci = bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False)
-    return Estimate(value, (float(ci[0]), float(ci[1])), fmt_ci(value, (float(ci[0]), float(ci[1]))),
-                    _budget(runs, claim["experiment"], claim["baseline"], n=[len(a), len(b)]), reach=float(grid[-1]))
+    low, high = (float(v) for v in bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False))
+    return Estimate(value, (low, high), fmt_ci(value, (low, high)), _pair_budget(runs, claim, a, b),
+                    reach=float(grid[-1]))
 
 
 def p_improvement(runs: Runs, claim: dict[str, str]) -> Estimate:

@@ -25,7 +25,6 @@ from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
 
 log = logging.getLogger(__name__)
 PAPER_DIR = Path(__file__).resolve().parents[2] / "results" / "paper"
-STATUSES = ("ok", "partial", "empty", "error")  # partial = drawn, with gaps; empty = nothing to draw
 
 
 class ReportError(ValueError):
@@ -115,7 +114,8 @@ def render_all(runs_dir: str | Path, out_dir: str | Path, only: Iterable[str] | 
     check_inputs(runs_dir, out_dir, only, x_axis, paper_dir)
     opts = Options(x_axis, paper_dir)
     entries = [BY_ID[i] for i in only] if only else list(ENTRIES)
-    rendered = {e.id: render_one(e, runs_dir, out_dir, opts) for e in tqdm(entries, disable=not progress, desc="report")}
+    bar = tqdm(entries, disable=not progress, desc="report")
+    rendered = {entry.id: render_one(entry, runs_dir, out_dir, opts) for entry in bar}
     index = _merge_index(out_dir / "index.json", rendered)
     meta = {"runs": str(runs_dir), "x_axis": x_axis, "command": command}
     atomic_write_json(out_dir / "index.json", {"meta": meta, "ids": [asdict(s) for s in index]})
@@ -158,9 +158,9 @@ def verify_outputs(out_dir: str | Path, statuses: dict[str, IdStatus]) -> list[s
             problems.append(f"{id_}: {status.error}")
             continue
         if entry.kind == "table":
-            base = out_dir / "tables" / id_
-            problems += [f"{id_}: {base.name}.{ext} missing or empty" for ext in ("md", "tex", "csv")
-                         if not base.with_suffix(f".{ext}").is_file() or not base.with_suffix(f".{ext}").stat().st_size]
+            paths = [out_dir / "tables" / f"{id_}.{ext}" for ext in ("md", "tex", "csv")]
+            problems += [f"{id_}: {p.name} missing or empty" for p in paths
+                         if not p.is_file() or not p.stat().st_size]
             continue
         png, want = out_dir / "figures" / f"{id_}.png", (round(entry.size[0] * DPI), round(entry.size[1] * DPI))
         if not png.is_file() or png_size(png) != want:

@@ -20,7 +20,8 @@ CAPTION = (
     "(stratified), none for a single trial.")
 
 
-def _row(comparison: Entry, label: str, budget: str | None, own: Scores, method: Scores | None) -> tuple[list, dict]:
+def _row(comparison: Entry, label: str, budget: str | None, own: Scores,
+         method: Scores | None) -> tuple[list[str], dict]:
     record = {"figure": comparison.id, "method": label, "budget": budget, "trials": len(own.final),
               "last_evaluation": own.last_x}
     cells = [comparison.ref, label, budget or NA, str(len(own.final))]

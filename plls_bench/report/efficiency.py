@@ -52,7 +52,8 @@ def hyperparameters(runs: Runs, entry: Entry, opts: Options, *, paper: str) -> O
         rows.append(cells)
     budgets = ", ".join(f"{s.label}: {e.budget_text} ({len(e.trials)} runs)" for s, e in zip(entry.sources, exps))
     notes = ["* differs from the paper. At smoke budget a per-algorithm file shrinks the vector env "
-             "(conf/budget/per_algo/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."] if differs else []
+             "(conf/budget/per_algo/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."]
+    notes = notes if differs else []
     baseline_note = [f"Paper's plain PPO differs: {r['hyperparameter']} = {r['paper_baseline']}"
                      for r in rows_in if r["paper_baseline"]]
     table = Table(f"{entry.ref}. {entry.title}",
@@ -116,8 +117,9 @@ def learning_efficiency(runs: Runs, entry: Entry, opts: Options) -> Output:
                      fmt_convergence(conv["iteration"]), fmt_convergence(conv["env_steps"]),
                      fmt_convergence(conv["env_steps_per_env"]), fmt(_paper_number(ref.get("sampled_frequency"))),
                      str(trials[source.label]), exp.budget or NA])
-        record = {"model": source.label, "experiment": exp.name, "budget": exp.budget, "trials": trials[source.label],
-                  "total_parameters": params.get("total"), "trainable_parameters": params.get("trainable"),
+        record = {"model": source.label, "experiment": exp.name, "budget": exp.budget,
+                  "trials": trials[source.label], "total_parameters": params.get("total"),
+                  "trainable_parameters": params.get("trainable"),
                   "paper_total_parameters": ref.get("total_parameters"),
                   "paper_trainable_parameters": ref.get("trainable_parameters"),
                   "paper_sampled_frequency": ref.get("sampled_frequency")}
@@ -133,4 +135,5 @@ def learning_efficiency(runs: Runs, entry: Entry, opts: Options) -> Output:
                   ["Model", "Total (suite)", "Total (paper)", "Trainable (suite)", "Trainable (paper)",
                    "PPO iterations to convergence", "Env steps to convergence", "Sampled_Frequency (suite)",
                    "Sampled_Frequency (paper)", "Trials", "Budget"], rows, pd.DataFrame(records))
-    return Output(table=table, trials=trials, empty=not any(runs.experiment(s.experiment).trials for s in entry.sources))
+    return Output(table=table, trials=trials,
+                  empty=not any(runs.experiment(s.experiment).trials for s in entry.sources))

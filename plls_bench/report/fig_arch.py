@@ -28,7 +28,8 @@ def _layers(runs: Runs, entry: Entry) -> tuple[pd.DataFrame, dict[str, str]]:
         if trial is None or arch is None:
             continue
         for module, layers in arch.items():
-            ok = isinstance(layers, list) and all(isinstance(l, dict) and set(LAYER_KEYS) <= set(l) for l in layers)
+            ok = isinstance(layers, list) and all(isinstance(x, dict) and set(LAYER_KEYS) <= set(x)
+                                                  for x in layers)
             if not ok:
                 runs.gap(exp, trial, f"metrics/architecture.json: module {module!r} is not a list of layers "
                                      f"with {', '.join(LAYER_KEYS)}")
@@ -59,8 +60,9 @@ def _draw_module(ax, layers: pd.DataFrame, title: str) -> None:
             italic.append(str(layer["type"]))
             continue
         x = 0.02 + slot * width
+        colour = TRAINABLE if layer["trainable"] else FROZEN
         ax.add_patch(FancyBboxPatch((x, 0.12), width * 0.86, 0.58, boxstyle="round,pad=0.005",
-                                    facecolor=TRAINABLE if layer["trainable"] else FROZEN, edgecolor="0.3", lw=0.6))
+                                    facecolor=colour, edgecolor="0.3", lw=0.6))
         label = f"{layer['type']}\n{_shape(layer['output_shape'])}\n{int(layer['params']):,} p"
         ax.text(x + width * 0.43, 0.41, label, ha="center", va="center", fontsize=max(5, min(8, 60 * width)))
         if italic:  # activations that came before this box, written under its left edge

@@ -43,7 +43,8 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
         if curves.n:
             frame = _band_frame(source.label, source.experiment, opts.x_axis, curves.grid, curves.values)
             early = int((~curves.complete_seeds()).sum())
-            _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{f', {early} stop early' if early else ''})")
+            note = f", {early} stop early" if early else ""
+            _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{note})")
             frames.append(frame)
     first = next(c for _, c in methods if c.n)
     ax.set_xlabel(x_label(first.experiment, opts.x_axis))
@@ -68,7 +69,7 @@ def loss_curves(runs: Runs, entry: Entry, opts: Options, *, model: str, metric: 
         if not rows:
             runs.gap(exp, trial, f"metrics/repr_train.jsonl: no rows for model={model}")
             continue
-        curve = tuple(np.array([_value(r, f"{split}_{metric}") for r in rows], dtype=float) for split in ("train", "val"))
+        curve = tuple(np.array([_value(r, f"{split}_{metric}") for r in rows]) for split in ("train", "val"))
         epochs = np.array([r["epoch"] for r in rows], dtype=float)
         distinct.setdefault((epochs.tobytes(), curve[0].tobytes(), curve[1].tobytes()), (epochs, *curve))
     title = f"{entry.title} ({_budgets(runs, entry)}, {len(exp.trials)} runs)"

@@ -53,10 +53,11 @@ def filmstrip(runs: Runs, entry: Entry, opts: Options) -> Output:
     steps = list(meta.get("frame_steps") or [])
     steps = steps if len(steps) >= len(images) else [None] * len(images)
     interval = meta.get("interval")
+    episode_return, total = meta.get("episode_return"), len(frames["frames"])
     details = [f"seed {trial.seed}", f"one frame every {interval} steps" if interval else None,
-               f"return {meta['episode_return']:.1f}" if isinstance(meta.get("episode_return"), (int, float)) else None,
+               f"return {episode_return:.1f}" if isinstance(episode_return, (int, float)) else None,
                f"goal after {meta['steps_to_goal']} steps" if meta.get("steps_to_goal") is not None else None,
-               f"first {MAX_FRAMES} of {len(frames['frames'])} frames" if len(frames["frames"]) > MAX_FRAMES else None]
+               f"first {MAX_FRAMES} of {total} frames" if total > MAX_FRAMES else None]
     title += ", " + ", ".join(d for d in details if d) + ")"
     fig = new_figure(entry.size)
     rows, cols = _grid(len(images), entry.size, images.shape[2] / images.shape[1])
@@ -109,7 +110,8 @@ def action_reconstructions(runs: Runs, entry: Entry, opts: Options) -> Output:
     exp = runs.experiment(source.experiment)
     relpath = "samples/action_reconstructions.npz"
     trial = runs.first_with(exp, relpath)
-    a = runs.arrays(exp, trial, relpath, {"actions": (None, None), "reconstructions": (None, None)}) if trial else None
+    shapes: dict[str, tuple[int | None, ...]] = {"actions": (None, None), "reconstructions": (None, None)}
+    a = runs.arrays(exp, trial, relpath, shapes) if trial else None
     title = f"{entry.title} ({'budget ' + exp.budget if exp.budget else 'no runs'}"
     if a is None or trial is None or a["actions"].shape != a["reconstructions"].shape:
         return empty_output(runs, entry, title + ")")

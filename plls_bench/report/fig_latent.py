@@ -35,7 +35,8 @@ def _load(runs: Runs, entry: Entry, study: str) -> tuple[Trial | None, dict[str,
     numbers = [f"{k} = {v:.4g}" for k, v in sorted((summary or {}).items())
                if isinstance(v, (int, float)) and not isinstance(v, bool)][:4]
     seed = f", seed {trial.seed}" if trial else ""
-    return trial, arrays, f"{entry.title} ({exp.budget_text}{seed})" + (f"\n{'; '.join(numbers)}" if numbers else "")
+    title = f"{entry.title} ({exp.budget_text}{seed})" + (f"\n{'; '.join(numbers)}" if numbers else "")
+    return trial, arrays, title
 
 
 def _mismatch(study: str, a: dict[str, np.ndarray]) -> str | None:
@@ -119,10 +120,11 @@ def onestep(runs: Runs, entry: Entry, opts: Options) -> Output:
         ax.set_title(name, fontsize=8)
         ax.legend(fontsize=7)
     suptitle(fig, entry.ref, title, {entry.sources[0].label: 1}, unit="run")
+    raw, decoded = a["next_states_raw"], a["next_states_decoded"]
     data = pd.DataFrame({"index": np.arange(len(left)), "action": a["actions"], "decoded": a["decoded"],
                          **{f"e_{c}": a["e"][:, i] for i, c in enumerate("lmn")},
-                         "x_raw": a["next_states_raw"][:, 0], "x_dot_raw": a["next_states_raw"][:, 1],
-                         "x_decoded": a["next_states_decoded"][:, 0], "x_dot_decoded": a["next_states_decoded"][:, 1]})
+                         "x_raw": raw[:, 0], "x_dot_raw": raw[:, 1], "x_decoded": decoded[:, 0],
+                         "x_dot_decoded": decoded[:, 1]})
     return Output(fig, data, trials={entry.sources[0].label: 1})
 
 
@@ -151,8 +153,10 @@ def generalisation(runs: Runs, entry: Entry, opts: Options) -> Output:
     ax.set_title("(c) states after reconstructed actions", fontsize=8)
     ax.legend(fontsize=7)
     suptitle(fig, entry.ref, title, {entry.sources[0].label: 1}, unit="run")
-    data = pd.DataFrame({"action_index": np.repeat(np.arange(k), samples), "sample": np.tile(np.arange(samples), k),
+    states = a["next_states"].reshape(-1, 2)
+    data = pd.DataFrame({"action_index": np.repeat(np.arange(k), samples),
+                         "sample": np.tile(np.arange(samples), k),
                          "action": np.repeat(a["actions"], samples), "decoded": a["decoded"].ravel(),
                          **{f"e_{c}": a["e"].reshape(-1, 3)[:, i] for i, c in enumerate("lmn")},
-                         "x_next": a["next_states"][..., 0].ravel(), "x_dot_next": a["next_states"][..., 1].ravel()})
+                         "x_next": states[:, 0], "x_dot_next": states[:, 1]})
     return Output(fig, data, trials={entry.sources[0].label: 1})
