@@ -220,16 +220,23 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str]
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def read_claims(paper_dir: Path) -> list[dict[str, str]]:
     """``claims.csv``, checked so that a typo fails loudly naming the row."""
     rows = read_paper(paper_dir, "claims")
     for line, row in enumerate(rows, 2):
         allowed = {"kind": tuple(KINDS), "rule": RULES, "min_budget": BUDGET_ORDER}
         problems = [f"{key} {row[key]!r}" for key, values in allowed.items() if row[key] not in values]
-        try:
-            float(row["threshold"])
-        except ValueError:
-            problems.append(f"threshold {row['threshold']!r}")
+        numbers = ("threshold", "threshold_high", "paper_value", "paper_pm", "from_x", "needs_x")
+        problems += [f"{key} {row[key]!r} (not a number)" for key in numbers
+                     if (row[key] or key == "threshold") and not _is_number(row[key])]
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     return rows
@@ -243,7 +250,8 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
         rows.append([claim["claim"], claim["paper"], est.text if est else NA, est.budget if est else NA,
                      outcome, reason, claim["source"]])
         records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],
-                        "paper": claim["paper"], "suite_value": est.value if est else None,
+                        "paper": claim["paper"], "paper_value": claim["paper_value"],
+                        "paper_pm": claim["paper_pm"], "suite_value": est.value if est else None,
                         "ci_low": est.ci[0] if est else None, "ci_high": est.ci[1] if est else None,
                         "suite": est.text if est else None, "budget": est.budget if est else None,
                         "verdict": outcome, "reason": reason, "rule": claim["rule"],

@@ -94,8 +94,8 @@ HYPER_COLUMNS = ("hyperparameter", "key", "paper_value", "paper_baseline", "sour
 PAPER_COLUMNS = {
     "table1": HYPER_COLUMNS, "table2": HYPER_COLUMNS,
     "table3": ("model", "experiment", "total_parameters", "trainable_parameters", "sampled_frequency", "source"),
-    "claims": ("claim", "entry", "kind", "experiment", "baseline", "param", "paper", "rule", "threshold",
-               "threshold_high", "x_axis", "from_x", "needs_x", "min_budget", "source"),
+    "claims": ("claim", "entry", "kind", "experiment", "baseline", "param", "paper", "paper_value", "paper_pm",
+               "rule", "threshold", "threshold_high", "x_axis", "from_x", "needs_x", "min_budget", "source"),
 }
 
 
