@@ -54,7 +54,8 @@ def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:
 def _budget(runs: Runs, *names: str, n: list[int] | None = None) -> str:
     exps = [runs.experiment(name) for name in names]
     counts = n or [len(e.trials) for e in exps]
-    return f"{'/'.join(sorted({e.budget or NA for e in exps}))} ({' + '.join(map(str, counts))} trials)"
+    word = "trial" if counts == [1] else "trials"
+    return f"{'/'.join(sorted({e.budget or NA for e in exps}))} ({' + '.join(map(str, counts))} {word})"
 
 
 def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -215,8 +216,11 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str]
         return est, NOT_RUN, f"runs reach {axis} {fmt(est.reach)} < {fmt(float(claim['needs_x']))}"
     low, high = est.ci if not math.isnan(est.ci[0]) else (est.value, est.value)
     high_t = float(claim["threshold_high"]) if claim["threshold_high"] else math.nan
-    reason = f"suite value {_rule_text(claim)}" + (" (one value: no CI)" if math.isnan(est.ci[0]) and
-                                                   claim["kind"] != "param_count" else " (95% CI)")
+    if not math.isnan(est.ci[0]):
+        basis = " (95% CI)"
+    else:  # a count is exact; anything else from one trial or model has no interval
+        basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
+    reason = f"suite value {_rule_text(claim)}{basis}"
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason
 
 

@@ -7,11 +7,11 @@ import math
 
 import pandas as pd
 
-from plls_bench.report.base import Entry, Options, Output
+from plls_bench.report.base import Entry, Options, Output, Source
 from plls_bench.report.load import Experiment, Runs
 from plls_bench.report.returns import Convergence, convergence, load_curves
 from plls_bench.report.stats import CONVERGENCE_TOLERANCE, CONVERGENCE_WINDOW
-from plls_bench.report.tables import NA, Table, fmt, read_paper
+from plls_bench.report.tables import NA, Table, fmt, plural, read_paper
 
 CONVERGENCE_RULE = (
     f"Convergence: the mean return over trials at each evaluation, smoothed by a trailing mean over "
@@ -26,6 +26,12 @@ def _paper_number(text: str) -> float | None:
         return float(text)
     except (TypeError, ValueError):
         return None
+
+
+def _paper_text(text: str | None) -> str:
+    """A paper cell: formatted like the suite's numbers when it is one, else as written."""
+    number = _paper_number(text)
+    return fmt(number) if number is not None else (text or NA)
 
 
 def _same(a: object, b: float | None) -> bool:
@@ -50,7 +56,8 @@ def hyperparameters(runs: Runs, entry: Entry, opts: Options, *, paper: str) -> O
                             "paper": row["paper_value"], "method": entry.sources[i].label,
                             "experiment": exp.name, "suite": value, "budget": exp.budget, "source": row["source"]})
         rows.append(cells)
-    budgets = ", ".join(f"{s.label}: {e.budget_text} ({len(e.trials)} runs)" for s, e in zip(entry.sources, exps))
+    budgets = ", ".join(f"{s.label}: {e.budget_text} ({plural(len(e.trials), 'run')})"
+                        for s, e in zip(entry.sources, exps))
     notes = ["* differs from the paper. At smoke budget a per-algorithm file shrinks the vector env "
              "(conf/budget/per_algo/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."]
     notes = notes if differs else []
@@ -100,40 +107,62 @@ def fmt_convergence(result: Convergence | None) -> str:
     return f"{point} [{one(low)}, {one(high)}]"
 
 
+def _scaled(result: Convergence | None, divisor: float) -> Convergence | None:
+    if result is None:
+        return None
+    return Convergence(result.x / divisor, (result.ci[0] / divisor, result.ci[1] / divisor), result.n,
+                       result.last_x / divisor)
+
+
+def _efficiency_row(runs: Runs, source: Source, ref: dict[str, str]) -> tuple[list[str], dict]:
+    """Table 3's cells and CSV record for one method."""
+    exp = runs.experiment(source.experiment)
+    params = parameter_counts(runs, exp) or {}
+    conv = {axis: convergence(load_curves(runs, exp, source.label, axis))
+            for axis in ("iteration", "env_steps", "env_steps_per_env")}
+    conv["sampled_frequency"] = _scaled(conv["env_steps_per_env"], float(exp.cfg("algo.ppo.n_envs", 1)))
+    n = max((c.n for c in conv.values() if c), default=0)
+    cells = [source.label, fmt(params.get("total")), fmt(_paper_number(ref.get("total_parameters"))),
+             fmt(params.get("trainable")), fmt(_paper_number(ref.get("trainable_parameters"))),
+             fmt_convergence(conv["iteration"]), fmt_convergence(conv["env_steps"]),
+             fmt_convergence(conv["env_steps_per_env"]), _paper_text(ref.get("iterations_to_convergence")),
+             fmt_convergence(conv["sampled_frequency"]), fmt(_paper_number(ref.get("sampled_frequency"))),
+             str(n), exp.budget or NA]
+    record = {"model": source.label, "experiment": exp.name, "budget": exp.budget, "trials": n,
+              "total_parameters": params.get("total"), "trainable_parameters": params.get("trainable"),
+              **{f"paper_{k}": ref.get(k) for k in ("total_parameters", "trainable_parameters",
+                                                     "iterations_to_convergence", "sampled_frequency")}}
+    for axis, result in conv.items():
+        record.update({f"converged_{axis}": result.x if result else None,
+                       f"converged_{axis}_ci_low": result.ci[0] if result else None,
+                       f"converged_{axis}_ci_high": result.ci[1] if result else None})
+    return cells, record
+
+
+TABLE3_CAPTION = (
+    "Total parameters: every module the method needs at run time (frozen V_s and V_a included); trainable: "
+    "what PPO updates (metrics/params.json). The paper's CarRacing 'iteration' is read as one step of the "
+    "vector env, i.e. environment steps per parallel env (so its 120,000 iterations are the paper budget's "
+    "1,920,000 env steps over 16 envs); Sampled_Frequency = those iterations to convergence / parallel envs, "
+    "as the paper's 60,000 / 16 = 3,750. ")
+
+
 def learning_efficiency(runs: Runs, entry: Entry, opts: Options) -> Output:
-    """Table 3: parameters (``params.json``) and iterations / env steps / env steps per env to
-    convergence (``eval.jsonl``) per method, beside the paper's row."""
+    """Table 3: parameters (``params.json``) and PPO iterations / env steps / env steps per env
+    (the paper's iterations) / Sampled_Frequency to convergence (``eval.jsonl``) per method,
+    beside the paper's row."""
     paper = {row["experiment"]: row for row in read_paper(opts.paper_dir, "table3")}
     rows, records, trials = [], [], {}
     for source in entry.sources:
-        exp = runs.experiment(source.experiment)
-        params = parameter_counts(runs, exp) or {}
-        conv = {axis: convergence(load_curves(runs, exp, source.label, axis))
-                for axis in ("iteration", "env_steps", "env_steps_per_env")}
-        trials[source.label] = max((c.n for c in conv.values() if c), default=0)
-        ref = paper.get(source.experiment, {})
-        rows.append([source.label, fmt(params.get("total")), fmt(_paper_number(ref.get("total_parameters"))),
-                     fmt(params.get("trainable")), fmt(_paper_number(ref.get("trainable_parameters"))),
-                     fmt_convergence(conv["iteration"]), fmt_convergence(conv["env_steps"]),
-                     fmt_convergence(conv["env_steps_per_env"]), fmt(_paper_number(ref.get("sampled_frequency"))),
-                     str(trials[source.label]), exp.budget or NA])
-        record = {"model": source.label, "experiment": exp.name, "budget": exp.budget,
-                  "trials": trials[source.label], "total_parameters": params.get("total"),
-                  "trainable_parameters": params.get("trainable"),
-                  "paper_total_parameters": ref.get("total_parameters"),
-                  "paper_trainable_parameters": ref.get("trainable_parameters"),
-                  "paper_sampled_frequency": ref.get("sampled_frequency")}
-        for axis, result in conv.items():
-            record.update({f"converged_{axis}": result.x if result else None,
-                           f"converged_{axis}_ci_low": result.ci[0] if result else None,
-                           f"converged_{axis}_ci_high": result.ci[1] if result else None})
+        cells, record = _efficiency_row(runs, source, paper.get(source.experiment, {}))
+        rows.append(cells)
         records.append(record)
-    caption = ("Total parameters: every module the method needs at run time (frozen V_s and V_a included); "
-               "trainable: what PPO updates (metrics/params.json). Sampled_Frequency = environment steps to "
-               "convergence / parallel envs, the paper's 'iterations to convergence / 16'. " + CONVERGENCE_RULE)
-    table = Table(f"{entry.ref}. {entry.title}", caption,
-                  ["Model", "Total (suite)", "Total (paper)", "Trainable (suite)", "Trainable (paper)",
-                   "PPO iterations to convergence", "Env steps to convergence", "Sampled_Frequency (suite)",
-                   "Sampled_Frequency (paper)", "Trials", "Budget"], rows, pd.DataFrame(records))
+        trials[source.label] = record["trials"]
+    columns = ["Model", "Total (suite)", "Total (paper)", "Trainable (suite)", "Trainable (paper)",
+               "PPO iterations to convergence", "Env steps to convergence",
+               "Env steps per env to convergence (suite)", "Iterations to convergence (paper)",
+               "Sampled_Frequency (suite)", "Sampled_Frequency (paper)", "Trials", "Budget"]
+    table = Table(f"{entry.ref}. {entry.title}", TABLE3_CAPTION + CONVERGENCE_RULE, columns, rows,
+                  pd.DataFrame(records))
     return Output(table=table, trials=trials,
                   empty=not any(runs.experiment(s.experiment).trials for s in entry.sources))

@@ -43,34 +43,49 @@ def _layers(runs: Runs, entry: Entry) -> tuple[pd.DataFrame, dict[str, str]]:
 
 
 def _shape(shape: object) -> str:
-    return "x".join(str(s) for s in shape) if isinstance(shape, (list, tuple)) else str(shape)
+    """``[1, 32, 47, 47]`` -> ``32x47x47``: the leading batch dimension of the example input dropped."""
+    if not isinstance(shape, (list, tuple)):
+        return str(shape)
+    dims = list(shape[1:]) if len(shape) > 1 else list(shape)
+    return "x".join(str(d) for d in dims)
+
+
+def _module_order(key: tuple[str, str]) -> int:
+    """architecture.json's keys come sorted; draw a method's modules in data-flow order."""
+    name = key[1].lower()
+    return 0 if "encoder" in name else 2 if "decoder" in name else 1
+
+
+def _chain(layers: pd.DataFrame) -> list[tuple[pd.Series | None, list[str]]]:
+    """Layers with parameters, each with the parameter-free layers (activations) after it."""
+    chain: list[tuple[pd.Series | None, list[str]]] = [(None, [])]
+    for _, layer in layers.iterrows():
+        if layer["params"] > 0:
+            chain.append((layer, []))
+        else:
+            chain[-1][1].append(str(layer["type"]))
+    return chain if chain[0][1] else chain[1:]
 
 
 def _draw_module(ax, layers: pd.DataFrame, title: str) -> None:
-    """One module as a left-to-right chain of boxes in axes coordinates."""
+    """One module as a left-to-right chain of boxes in axes coordinates; each box's activations
+    in italics under it."""
     ax.set_axis_off()
     ax.set(xlim=(0, 1), ylim=(0, 1))
     ax.text(0.0, 0.95, title, fontsize=8, weight="bold", va="top")
-    boxes = layers[layers["params"] > 0]
-    width = min(0.96 / max(len(boxes), 1), 0.16)  # a short module keeps boxes of readable size
-    italic: list[str] = []
-    slot = 0
-    for _, layer in layers.iterrows():
-        if layer["params"] == 0:
-            italic.append(str(layer["type"]))
-            continue
+    chain = _chain(layers)
+    width = min(0.96 / max(len(chain), 1), 0.16)  # a short module keeps boxes of readable size
+    for slot, (layer, italic) in enumerate(chain):
         x = 0.02 + slot * width
-        colour = TRAINABLE if layer["trainable"] else FROZEN
-        ax.add_patch(FancyBboxPatch((x, 0.12), width * 0.86, 0.58, boxstyle="round,pad=0.005",
-                                    facecolor=colour, edgecolor="0.3", lw=0.6))
-        label = f"{layer['type']}\n{_shape(layer['output_shape'])}\n{int(layer['params']):,} p"
-        ax.text(x + width * 0.43, 0.41, label, ha="center", va="center", fontsize=max(5, min(8, 60 * width)))
-        if italic:  # activations that came before this box, written under its left edge
-            ax.text(x, 0.03, textwrap.shorten(" ".join(italic), 40), fontsize=5, style="italic")
-            italic = []
-        slot += 1
-    if italic:
-        ax.text(0.02 + slot * width, 0.41, " ".join(italic), fontsize=6, style="italic", va="center")
+        if layer is not None:
+            colour = TRAINABLE if layer["trainable"] else FROZEN
+            ax.add_patch(FancyBboxPatch((x, 0.15), width * 0.86, 0.55, boxstyle="round,pad=0.005",
+                                        facecolor=colour, edgecolor="0.3", lw=0.6))
+            label = f"{layer['type']}\n{_shape(layer['output_shape'])}\n{int(layer['params']):,} p"
+            ax.text(x + width * 0.43, 0.42, label, ha="center", va="center", fontsize=max(5, min(8, 60 * width)))
+        if italic:
+            ax.text(x + width * 0.43, 0.04, textwrap.shorten(" ".join(italic), 40), fontsize=6,
+                    style="italic", ha="center")
 
 
 def architecture(runs: Runs, entry: Entry, opts: Options) -> Output:
@@ -79,12 +94,17 @@ def architecture(runs: Runs, entry: Entry, opts: Options) -> Output:
     if data.empty:
         return empty_output(runs, entry, entry.title)
     trials = {s.label: int((data["source"] == s.label).any()) for s in entry.sources}
-    modules = list(dict.fromkeys(zip(data["source"], data["module"])))
+    order = {s.label: i for i, s in enumerate(entry.sources)}
+    modules = sorted(dict.fromkeys(zip(data["source"], data["module"])),
+                     key=lambda m: (order[m[0]], _module_order(m)))
     fig = new_figure(entry.size)
-    axes = fig.subplots(len(modules), 1, squeeze=False)[:, 0]
+    axes = fig.subplots(max(len(modules), 4), 1, squeeze=False)[:, 0]  # rows of one height, however few
+    for ax in axes[len(modules):]:
+        ax.set_axis_off()
     for ax, (label, module) in zip(axes, modules):
         rows = data[(data["source"] == label) & (data["module"] == module)]
-        frozen = "trainable" if rows["trainable"].all() else "frozen" if not rows["trainable"].any() else "mixed"
+        weighted = rows[rows["params"] > 0]["trainable"]  # parameter-free layers are neither
+        frozen = "trainable" if weighted.all() else "frozen" if not weighted.any() else "mixed"
         _draw_module(ax, rows, f"{label}: {module} ({int(rows['params'].sum()):,} parameters, {frozen})")
     summary = "; ".join(f"{label}: {text}" for label, text in totals.items())
     suptitle(fig, entry.ref, f"{entry.title}\n{summary}" if summary else entry.title, trials, unit="run")

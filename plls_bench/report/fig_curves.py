@@ -11,6 +11,7 @@ from plls_bench.report.load import Runs
 from plls_bench.report.plot import empty_output, new_figure, suptitle
 from plls_bench.report.returns import load_curves, x_label
 from plls_bench.report.stats import align, band
+from plls_bench.report.tables import plural
 
 
 def _band_frame(series: str, experiment: str, x_name: str, grid: np.ndarray, values: np.ndarray) -> pd.DataFrame:
@@ -72,7 +73,7 @@ def loss_curves(runs: Runs, entry: Entry, opts: Options, *, model: str, metric: 
         curve = tuple(np.array([_value(r, f"{split}_{metric}") for r in rows]) for split in ("train", "val"))
         epochs = np.array([r["epoch"] for r in rows], dtype=float)
         distinct.setdefault((epochs.tobytes(), curve[0].tobytes(), curve[1].tobytes()), (epochs, *curve))
-    title = f"{entry.title} ({_budgets(runs, entry)}, {len(exp.trials)} runs)"
+    title = f"{entry.title} ({_budgets(runs, entry)}, {plural(len(exp.trials), 'run')})"
     trials = {source.label: len(distinct)}
     if not distinct:
         return empty_output(runs, entry, title)

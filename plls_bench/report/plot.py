@@ -13,6 +13,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from plls_bench.report.base import Entry, Output
+from plls_bench.report.tables import plural
 from plls_bench.runs import atomic_write_bytes
 
 if TYPE_CHECKING:
@@ -44,7 +45,7 @@ def save_figure(fig: Figure, base: Path) -> list[Path]:
 
 def trials_text(trials: dict[str, int], unit: str = "trial") -> str:
     """``PL-LS + PPO: 7 trials, PPO: 6 trials`` (the count each series shows)."""
-    return ", ".join(f"{label}: {n} {unit}{'' if n == 1 else 's'}" for label, n in trials.items())
+    return ", ".join(f"{label}: {plural(n, unit)}" for label, n in trials.items())
 
 
 def suptitle(fig: Figure, ref: str, title: str, trials: dict[str, int], unit: str = "trial") -> None:

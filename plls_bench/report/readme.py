@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 from plls_bench.config import BUDGET_NAMES
 from plls_bench.provenance import git_state
+from plls_bench.report.tables import plural
 from plls_bench.runs import atomic_write_bytes, iter_run_dirs, read_json
 
 if TYPE_CHECKING:
@@ -34,7 +35,8 @@ def _runs_summary(runs_dir: Path) -> list[str]:
     largest = max(budgets, key=lambda b: BUDGET_ORDER.index(b) if b in BUDGET_ORDER else -1)
     return [f"- Budget profile: **{largest}** (largest found); run dirs per profile: "
             + ", ".join(f"{b} {n}" for b, n in sorted(budgets.items())),
-            "- Runs produced at commit(s): " + ", ".join(f"`{c}` ({n} runs)" for c, n in commits.most_common())]
+            "- Runs produced at commit(s): "
+            + ", ".join(f"`{c}` ({plural(n, 'run')})" for c, n in commits.most_common())]
 
 
 def _files(status: "IdStatus", *exts: str) -> str:

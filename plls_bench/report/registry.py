@@ -47,7 +47,7 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("fig11", "Fig. 11", "MountainCar, the learned PL-LS + PPO policy", (MC_PLLS,), fig_images.filmstrip,
           "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
     Entry("fig12", "Fig. 12", "Structure of V_s", (S("carracing_vs", "V_s"),), fig_arch.architecture,
-          "metrics/architecture.json, metrics/params.json", size=(14.0, 4.0)),
+          "metrics/architecture.json, metrics/params.json", size=(14.0, 5.0)),
     Entry("fig13", "Fig. 13", "CarRacing V_s, training loss per epoch", (S("carracing_vs", "V_s"),),
           partial(fig_curves.loss_curves, model="state", metric="loss"), "metrics/repr_train.jsonl"),
     Entry("fig14", "Fig. 14", "CarRacing, V_s reconstructions", (S("carracing_vs", "V_s"),),

@@ -82,6 +82,11 @@ def fmt(value: object, digits: int = 4) -> str:
     return f"{value:.{digits}g}"
 
 
+def plural(n: int, word: str) -> str:
+    """``1 run``, ``3 runs``."""
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
 def fmt_ci(value: float, interval: tuple[float, float], digits: int = 4) -> str:
     """``value [low, high]``, or just the value when there is no interval (one trial)."""
     if any(math.isnan(v) for v in interval):
@@ -93,7 +98,8 @@ def fmt_ci(value: float, interval: tuple[float, float], digits: int = 4) -> str:
 HYPER_COLUMNS = ("hyperparameter", "key", "paper_value", "paper_baseline", "source")
 PAPER_COLUMNS = {
     "table1": HYPER_COLUMNS, "table2": HYPER_COLUMNS,
-    "table3": ("model", "experiment", "total_parameters", "trainable_parameters", "sampled_frequency", "source"),
+    "table3": ("model", "experiment", "total_parameters", "trainable_parameters", "iterations_to_convergence",
+               "sampled_frequency", "source"),
     "claims": ("claim", "entry", "kind", "experiment", "baseline", "param", "paper", "paper_value", "paper_pm",
                "rule", "threshold", "threshold_high", "x_axis", "from_x", "needs_x", "min_budget", "source"),
 }
