@@ -22,8 +22,8 @@ from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI
 from tests.conftest import REPO_ROOT
-from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_params,
-                                  write_repr)
+from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_npz,
+                                  write_params, write_repr)
 
 ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
 PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9}
@@ -183,6 +183,11 @@ def break_runs(runs: Path) -> None:
     run, cfg = make_run(runs, "carracing_va", 0)
     run.write_bytes("samples/action_reconstructions.npz", b"PK\x03\x04 not a zip")
     finish(run, cfg)
+    run, cfg = make_run(runs, "carracing_vs", 0)  # no frame with the car on the grass
+    frames = np.zeros((1, 3, 96, 96), dtype=np.uint8)
+    write_npz(run, "samples/state_reconstructions.npz", originals=frames, reconstructions=frames,
+              labels=np.array(["road"]))
+    finish(run, cfg)
 
 
 def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) -> None:
@@ -202,6 +207,7 @@ def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) 
                 "cheetah_dbc/default seed=0: status failed (RuntimeError: boom)",
                 "cheetah_dbc/default seed=0: metrics/eval.jsonl: 1 corrupt line(s) skipped",
                 "carracing_va/default seed=0: samples/action_reconstructions.npz missing or unreadable",
+                "carracing_vs/default seed=0: samples/state_reconstructions.npz: no frame labelled grass",
                 "carracing_ppo_vs/default: no runs"):
         assert gap in readme, gap
     assert statuses["fig18"].status == "partial" and statuses["fig18"].trials == {"PL-LS + PPO": 2, "PPO": 2}

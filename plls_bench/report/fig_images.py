@@ -87,6 +87,9 @@ def state_reconstructions(runs: Runs, entry: Entry, opts: Options) -> Output:
     title = f"{entry.title} ({'budget ' + exp.budget if exp.budget else 'no runs'}"
     if a is None or trial is None or not len(a["originals"]) == len(a["reconstructions"]) == len(a["labels"]):
         return empty_output(runs, entry, title + ")")
+    missing = sorted({"road", "grass"} - set(a["labels"].astype(str)))
+    if missing:  # the paper shows the car on the road and on the grass
+        runs.gap(exp, trial, f"{relpath}: no frame labelled {' or '.join(missing)}")
     fig = new_figure(entry.size)
     k = len(a["originals"])
     for i in range(k):
