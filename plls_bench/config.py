@@ -258,6 +258,7 @@ class BudgetConfig(Validated):
     data_episodes: int = MISSING
     data_steps_per_episode: int = MISSING
     repr_epochs: int = MISSING
+    repr_action_epochs: Optional[int] = None  # V_a epochs when set; None: repr_epochs
     train_env_steps: int = MISSING
     eval_every_env_steps: int = MISSING
     eval_episodes: int = MISSING
@@ -267,6 +268,15 @@ class BudgetConfig(Validated):
         for key in ("trials", "data_episodes", "data_steps_per_episode", "repr_epochs",
                     "train_env_steps", "eval_every_env_steps", "eval_episodes"):
             check_positive(getattr(self, key), f"budget.{key}")
+        if self.repr_action_epochs is not None:
+            check_positive(self.repr_action_epochs, "budget.repr_action_epochs")
+
+    def epochs_for(self, which: str) -> int:
+        """Training epochs of V_s (``state``) or V_a (``action``). V_a may get its own count:
+        an epoch of it costs about a thousandth of a V_s epoch on the same data."""
+        if which == "action" and self.repr_action_epochs is not None:
+            return self.repr_action_epochs
+        return self.repr_epochs
 
 
 # --------------------------------------------------------------------------- root

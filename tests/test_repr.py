@@ -50,7 +50,7 @@ def test_mountaincar_va_preset_from_the_command_line(runs_dir: Path) -> None:
     run_dir = runs_dir / "mountaincar_va" / "default" / "seed=0"
     assert read_json(run_dir / "status.json")["state"] == "done"
     cfg = compose_preset("mountaincar_va", runs_dir)
-    test = check_repr_run(run_dir, {"action": cfg.budget.repr_epochs})
+    test = check_repr_run(run_dir, {"action": cfg.budget.epochs_for("action")})
     samples = np.load(run_dir / "samples" / "action_reconstructions.npz")
     first = min(200, test["action"]["n_test"])  # Fig. 16: the first 200 test actions
     assert samples["actions"].shape == samples["reconstructions"].shape == (first, 1)
@@ -61,9 +61,9 @@ def test_mountaincar_va_preset_from_the_command_line(runs_dir: Path) -> None:
 @pytest.mark.slow
 def test_carracing_presets_train_vs_and_va_on_one_dataset(runs_dir: Path) -> None:
     vs_dir, va_dir = run_preset("carracing_vs", runs_dir), run_preset("carracing_va", runs_dir)
-    epochs = compose_preset("carracing_vs", runs_dir).budget.repr_epochs
-    check_repr_run(vs_dir, {"state": epochs})
-    check_repr_run(va_dir, {"action": epochs})
+    budget = compose_preset("carracing_vs", runs_dir).budget
+    check_repr_run(vs_dir, {"state": budget.epochs_for("state")})
+    check_repr_run(va_dir, {"action": budget.epochs_for("action")})
     assert len(list((runs_dir / "artifacts" / "data").iterdir())) == 2  # one dataset + its lock
     frames = np.load(vs_dir / "samples" / "state_reconstructions.npz")
     assert frames["originals"].dtype == frames["reconstructions"].dtype == np.uint8
@@ -76,7 +76,7 @@ def test_carracing_presets_train_vs_and_va_on_one_dataset(runs_dir: Path) -> Non
 @pytest.mark.slow
 def test_cheetah_va_preset(runs_dir: Path) -> None:
     run_dir = run_preset("cheetah_va", runs_dir)
-    check_repr_run(run_dir, {"action": compose_preset("cheetah_va", runs_dir).budget.repr_epochs})
+    check_repr_run(run_dir, {"action": compose_preset("cheetah_va", runs_dir).budget.epochs_for("action")})
     assert np.load(run_dir / "samples" / "action_reconstructions.npz")["actions"].shape[1] == 6
 
 
@@ -138,8 +138,25 @@ def test_a_killed_training_resumes_to_the_same_weights(runs_dir: Path, monkeypat
     resumed = get_action_vae(cfg)
     assert all(torch.equal(resumed.state_dict()[k], v) for k, v in reference.items())
     history = read_json(ensure_artifact(cfg, "action").path / "history.json")
-    assert [row["epoch"] for row in history] == list(range(1, cfg.budget.repr_epochs + 1))
+    assert [row["epoch"] for row in history] == list(range(1, cfg.budget.epochs_for("action") + 1))
     assert not list((runs_dir / "b" / "artifacts" / "repr_action").glob(".*")), "no partial or tmp left"
+
+
+def test_an_incomplete_resume_file_restarts_training_from_scratch(runs_dir: Path, caplog) -> None:
+    reference = state_of(get_action_vae(compose_preset("mountaincar_va", runs_dir / "a")))
+    cfg = compose_preset("mountaincar_va", runs_dir / "b")
+    from plls_bench.artifacts import artifact_path
+    from plls_bench.repr.store import repr_key
+
+    final = artifact_path(cfg.runs_dir, "repr_action", repr_key(cfg, "action"))
+    torn = final.parent / f".{final.name}.partial" / "resume.pt"
+    torn.parent.mkdir(parents=True)
+    # loadable weights but no optimizer state: the weights must not survive into the fresh start
+    torch.save({"model": {k: v + 1.0 for k, v in reference.items()}, "epoch": 5}, torn)
+    with caplog.at_level(logging.WARNING):
+        rebuilt = get_action_vae(cfg)
+    assert "ignoring unreadable resume state" in caplog.text
+    assert all(torch.equal(rebuilt.state_dict()[k], v) for k, v in reference.items())
 
 
 def test_a_checkpoint_of_other_shapes_is_refused_naming_the_tensor(runs_dir: Path) -> None:

@@ -120,3 +120,12 @@ def test_architecture_summary_lists_layers_with_shapes_and_params() -> None:
         assert sum(row["params"] for row in rows) == sum(p.numel() for p in module.parameters())
     assert set(encoder[0]) == {"name", "type", "output_shape", "params", "trainable"}
     assert vae.training, "the summary pass must leave the module's mode alone"
+
+
+def test_va_may_train_longer_than_vs_at_the_same_budget() -> None:
+    budget = compose(["env=carracing", "budget=quick"]).budget
+    assert budget.epochs_for("action") == budget.repr_action_epochs != budget.epochs_for("state")
+    mountaincar = compose(["env=mountaincar", "budget=quick"]).budget
+    assert mountaincar.epochs_for("action") == mountaincar.epochs_for("state") == mountaincar.repr_epochs
+    with pytest.raises(ConfigError, match="budget.repr_action_epochs"):
+        compose(["budget.repr_action_epochs=0"])

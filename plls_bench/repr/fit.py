@@ -9,6 +9,7 @@ import io
 import logging
 import time
 from collections import defaultdict
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -38,6 +39,17 @@ class Split:
         """Rows ``rows`` of the split as float32, uint8 pixels scaled to [0, 1]."""
         x = torch.as_tensor(self.array[self.index[rows]], device=device)
         return x.float().div_(255.0) if x.dtype == torch.uint8 else x.float()
+
+
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """Run the block with ``n`` torch intra-op threads, then restore the previous count."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 def batches(n: int, size: int, order: np.ndarray | None = None) -> Iterator[np.ndarray]:
@@ -91,6 +103,7 @@ def _load_resume(path: Path, model: VAE, optimizer: torch.optim.Optimizer) -> tu
     """Restore training from ``path``; a missing or unreadable file starts from epoch 0."""
     if not path.exists():
         return 0, []
+    fresh = {k: v.clone() for k, v in model.state_dict().items()}
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
         model.load_state_dict(state["model"])
@@ -98,6 +111,8 @@ def _load_resume(path: Path, model: VAE, optimizer: torch.optim.Optimizer) -> tu
         torch.set_rng_state(state["rng"])
     except Exception as err:  # a torn or foreign file: training restarts, nothing is trusted
         log.warning("ignoring unreadable resume state %s (%s): training from scratch", path, err)
+        model.load_state_dict(fresh)  # undo whatever part of the state did load
+        optimizer.state.clear()
         return 0, []
     log.info("resuming VAE training from %s after epoch %d", path, state["epoch"])
     return int(state["epoch"]), list(state["history"])

@@ -56,7 +56,7 @@ def repr_key(cfg: Config, which: str) -> dict[str, Any]:
 
     settings = {k: v for k, v in asdict(model_config(cfg, which)).items() if k not in _NOT_IN_KEY}
     return {"format": REPR_FORMAT, "model": which, "data": dataset_key(cfg), "repr": settings,
-            "epochs": cfg.budget.repr_epochs}
+            "epochs": cfg.budget.epochs_for(which)}
 
 
 def sha256(path: Path) -> str:
