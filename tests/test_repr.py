@@ -70,7 +70,7 @@ def test_carracing_presets_train_vs_and_va_on_one_dataset(runs_dir: Path) -> Non
     assert frames["originals"].shape == frames["reconstructions"].shape == (len(frames["labels"]), 3, 96, 96)
     assert set(frames["labels"]) <= {"road", "grass"} and "road" in set(frames["labels"])
     arch = read_json(vs_dir / "metrics" / "architecture.json")
-    assert arch["state_vae.decoder"][-1]["output_shape"] == [1, 3, 96, 96]
+    assert arch["V_s.decoder"][-1]["output_shape"] == [1, 3, 96, 96]
 
 
 @pytest.mark.slow
@@ -103,6 +103,27 @@ def test_smoke_va_reconstructs_held_out_actions_better_than_their_mean(runs_dir:
     stored = read_json(ensure_artifact(cfg, "action").path / "test.json")
     assert stored["test_mse"] < 0.5 * stored["mean_predictor_mse"]
     assert stored["mean_predictor_mse"] == pytest.approx(baseline, rel=1e-4)
+
+
+def _ensure_in_child(runs_dir: str, queue) -> None:
+    artifact = ensure_artifact(compose_preset("mountaincar_va", Path(runs_dir)), "action")
+    queue.put((artifact.built, str(artifact.path)))
+
+
+@pytest.mark.slow
+def test_parallel_trials_train_the_representation_once(runs_dir: Path) -> None:
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    procs = [ctx.Process(target=_ensure_in_child, args=(str(runs_dir), queue)) for _ in range(2)]
+    for proc in procs:
+        proc.start()
+    results = [queue.get(timeout=240) for _ in procs]
+    for proc in procs:
+        proc.join(timeout=60)
+        assert proc.exitcode == 0
+    assert sorted(built for built, _ in results) == [False, True] and results[0][1] == results[1][1]
 
 
 def test_models_come_back_frozen_in_eval_mode(runs_dir: Path) -> None:

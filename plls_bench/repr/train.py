@@ -130,9 +130,10 @@ def run(cfg: Config, run: Run) -> None:
         run.write_bytes(f"samples/{which}_reconstructions.npz", (artifact.path / "samples.npz").read_bytes())
         device = next(model.parameters()).device
         x = torch.zeros(1, *model.image_shape) if which == "state" else torch.zeros(1, model.action_dim)
-        modules[f"{which}_vae.encoder"], examples[f"{which}_vae.encoder"] = model.encoder, x.to(device)
-        modules[f"{which}_vae.decoder"] = model.decoder
-        examples[f"{which}_vae.decoder"] = torch.zeros(1, model.latent_dim, device=device)
+        name = f"V_{which[0]}"  # V_s / V_a, as the paper and plls_bench.latent.latent_modules name them
+        modules[f"{name}.encoder"], examples[f"{name}.encoder"] = model.encoder, x.to(device)
+        modules[f"{name}.decoder"] = model.decoder
+        examples[f"{name}.decoder"] = torch.zeros(1, model.latent_dim, device=device)
     run.write_bytes("metrics/repr_train.jsonl",
                     "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
     run.write_json("metrics/repr_test.json", tests)
