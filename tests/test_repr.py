@@ -14,7 +14,7 @@ from plls_bench.repr import get_action_vae, get_state_vae, new_model
 from plls_bench.repr.store import CheckpointError, CheckpointMismatch, ensure_artifact, load_weights, sha256
 from plls_bench.runner import execute
 from plls_bench.runs import atomic_write_json, read_json, read_jsonl
-from tests.conftest import compose_preset, run_cli
+from tests.conftest import compose_preset, in_two_processes, run_cli
 
 EPOCH_KEYS = {"model", "epoch", "train_loss", "train_recon_mse", "train_kl", "val_loss", "val_recon_mse", "val_kl"}
 
@@ -112,17 +112,7 @@ def _ensure_in_child(runs_dir: str, queue) -> None:
 
 @pytest.mark.slow
 def test_parallel_trials_train_the_representation_once(runs_dir: Path) -> None:
-    import multiprocessing as mp
-
-    ctx = mp.get_context("spawn")
-    queue = ctx.Queue()
-    procs = [ctx.Process(target=_ensure_in_child, args=(str(runs_dir), queue)) for _ in range(2)]
-    for proc in procs:
-        proc.start()
-    results = [queue.get(timeout=240) for _ in procs]
-    for proc in procs:
-        proc.join(timeout=60)
-        assert proc.exitcode == 0
+    results = in_two_processes(_ensure_in_child, str(runs_dir))
     assert sorted(built for built, _ in results) == [False, True] and results[0][1] == results[1][1]
 
 
