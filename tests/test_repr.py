@@ -216,3 +216,18 @@ def test_garbage_checkpoint_is_refused_by_the_loader(tmp_path: Path, runs_dir: P
     torch.save([torch.zeros(1)], tmp_path / "list.pt")
     with pytest.raises(CheckpointError, match="not hold a state dict"):
         load_weights(tmp_path / "list.pt", model, "repr.action")
+
+
+def test_surface_under_the_car_heuristic_on_synthetic_frames() -> None:
+    from plls_bench.repr.samples import CAR_COLS, CAR_ROWS, surface_under_car
+
+    def frame(rgb: tuple[int, int, int]) -> np.ndarray:
+        x = np.empty((3, 96, 96), dtype=np.uint8)
+        x[:] = np.asarray(rgb, dtype=np.uint8)[:, None, None]
+        x[:, 68:76, 46:50] = np.asarray([204, 0, 0], dtype=np.uint8)[:, None, None]  # the red car
+        return x
+
+    road, grass = frame((105, 105, 105)), frame((102, 204, 102))
+    straddling = road.copy()
+    straddling[:, CAR_ROWS, CAR_COLS.start:48] = grass[:, CAR_ROWS, CAR_COLS.start:48]
+    assert list(surface_under_car(np.stack([road, grass, straddling]))) == ["road", "grass", "mixed"]

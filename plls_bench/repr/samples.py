@@ -21,7 +21,7 @@ log = logging.getLogger(__name__)
 N_ACTIONS = 200                        # Fig. 16: "the first 200 of the test data"
 CAR_ROWS, CAR_COLS = slice(66, 78), slice(44, 52)  # the car's box in CarRacing's 96x96 frame
 INTRO_FRAMES = 50                      # CarRacing zooms in during its first second at 50 FPS
-MIN_SHARE = 0.5                        # a surface must cover half the uncovered pixels in the box
+MIN_SHARE = 0.5                        # a surface must cover more than half the uncovered pixels in the box
 
 
 def surface_under_car(frames: np.ndarray) -> np.ndarray:
@@ -33,8 +33,8 @@ def surface_under_car(frames: np.ndarray) -> np.ndarray:
     road = (np.abs(r - g) < 25) & (np.abs(g - b) < 25) & (r >= 60) & (r <= 170) & ~car
     free = np.maximum((~car).sum(axis=(1, 2)), 1)
     labels = np.full(len(frames), "mixed", dtype="<U5")
-    labels[road.sum(axis=(1, 2)) / free >= MIN_SHARE] = "road"
-    labels[grass.sum(axis=(1, 2)) / free >= MIN_SHARE] = "grass"
+    labels[road.sum(axis=(1, 2)) / free > MIN_SHARE] = "road"
+    labels[grass.sum(axis=(1, 2)) / free > MIN_SHARE] = "grass"
     return labels
 
 
