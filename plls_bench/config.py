@@ -18,6 +18,7 @@ ENV_NAMES = ("mountaincar", "carracing", "cheetah")
 REPR_KINDS = ("none", "vae")
 ALGO_NAMES = ("ppo", "dbc", "none")
 BUDGET_NAMES = ("smoke", "quick", "paper")
+DATA_POLICIES = ("uniform", "correlated")
 
 
 class ConfigError(ValueError):
@@ -82,6 +83,8 @@ class EnvConfig(Validated):
     data_num_envs: int = 1
     data_async: bool = False
     data_train_fraction: float = MISSING
+    data_policy: str = "uniform"
+    data_policy_correlation: float = 0.95
 
     def validate(self) -> None:
         check_choice(self.name, ENV_NAMES, "env.name")
@@ -90,6 +93,9 @@ class EnvConfig(Validated):
         check_positive(self.action_repeat, "env.action_repeat")
         check_positive(self.data_num_envs, "env.data_num_envs")
         check_fraction(self.data_train_fraction, "env.data_train_fraction")
+        check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
+        check(0 <= self.data_policy_correlation < 1, "env.data_policy_correlation",
+              f"must be in [0, 1), got {self.data_policy_correlation!r}")
         if self.pixels or self.data_pixels:
             check_positive(self.image_size, "env.image_size")
 
