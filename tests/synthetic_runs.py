@@ -33,7 +33,7 @@ PRESETS: dict[str, list[str]] = {
     "mountaincar_va": ["env=mountaincar", "runner=repr", "repr/action=vae"],
     "carracing_vs": ["env=carracing", "runner=repr", "repr/state=vae"],
     "carracing_va": ["env=carracing", "runner=repr", "repr/action=vae"],
-    **{f"mountaincar_{s}": ["env=mountaincar", "runner=study", "repr/action=vae"]
+    **{f"mountaincar_{s}": ["env=mountaincar", "runner=study", "repr/action=vae", f"+study={s}"]
        for s in ("multistep", "onestep", "generalisation")},
 }
 
