@@ -309,6 +309,7 @@ class StudyConfig(Validated):
     samples_per_action: int = 1
     decode: str = "e"
     knn: int = 10
+    tracking_tolerance: float = 0.05
 
     def validate(self) -> None:
         check_choice(self.name, STUDY_NAMES, "study.name")
@@ -326,6 +327,7 @@ class StudyConfig(Validated):
         check_positive(self.samples_per_action, "study.samples_per_action")
         check_choice(self.decode, LATENT_CHOICES, "study.decode")
         check_positive(self.knn, "study.knn")
+        check_positive(self.tracking_tolerance, "study.tracking_tolerance")
         if self.name == "generalisation":
             check(self.decode == "e", "study.decode", "generalisation decodes its samples e; mu is one point")
         else:  # the README's arrays hold one e per action for these studies

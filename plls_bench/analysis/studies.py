@@ -74,19 +74,23 @@ def encode(vae: ActionVAE, actions: np.ndarray, samples: int, rng: np.random.Gen
 
 
 # --------------------------------------------------------------------------- the three studies
-def multistep(enc: Encoded, car: MountainCar, s0: np.ndarray, shuffle: np.ndarray) -> tuple[dict, Metrics]:
+def multistep(enc: Encoded, car: MountainCar, study: StudyConfig, shuffle: np.ndarray) -> tuple[dict, Metrics]:
     """Fig 7: raw and reconstructed actions applied in sequence from s0 (two trajectories)."""
-    decoded = enc.decoded[:, 0]
+    s0, decoded = np.asarray(study.s0, dtype=np.float64), enc.decoded[:, 0]
     raw_states, decoded_states = car.trajectory(s0, enc.actions), car.trajectory(s0, decoded)
     shuffled_states = car.trajectory(s0, enc.actions[shuffle])
     arrays = {"actions": enc.actions, "mu": enc.mu, "e": enc.e[:, 0], "decoded": decoded,
               "states_raw": raw_states, "states_decoded": decoded_states}
-    return arrays, dynamics(raw_states, decoded_states, shuffled_states, car.state_range)
+    metrics = dynamics(raw_states, decoded_states, shuffled_states, car.state_range)
+    for suffix, states in (("", decoded_states), ("_shuffled", shuffled_states)):
+        metrics[f"dynamics/tracking_steps{suffix}"] = tracking_steps(raw_states, states, car.state_range,
+                                                                     study.tracking_tolerance)
+    return arrays, metrics
 
 
-def onestep(enc: Encoded, car: MountainCar, s0: np.ndarray, shuffle: np.ndarray) -> tuple[dict, Metrics]:
+def onestep(enc: Encoded, car: MountainCar, study: StudyConfig, shuffle: np.ndarray) -> tuple[dict, Metrics]:
     """Fig 8: each raw and each reconstructed action applied once from s0."""
-    decoded = enc.decoded[:, 0]
+    s0, decoded = np.asarray(study.s0, dtype=np.float64), enc.decoded[:, 0]
     raw_next, decoded_next = car.one_step(s0, enc.actions), car.one_step(s0, decoded)
     metrics = dynamics(raw_next, decoded_next, car.one_step(s0, enc.actions[shuffle]), car.state_range)
     metrics["dynamics/direction_agreement"] = direction_agreement(s0, raw_next, decoded_next)
@@ -95,9 +99,10 @@ def onestep(enc: Encoded, car: MountainCar, s0: np.ndarray, shuffle: np.ndarray)
     return arrays, metrics
 
 
-def generalisation(enc: Encoded, car: MountainCar, s0: np.ndarray, shuffle: np.ndarray) -> tuple[dict, Metrics]:
+def generalisation(enc: Encoded, car: MountainCar, study: StudyConfig, shuffle: np.ndarray) -> tuple[dict, Metrics]:
     """Fig 9: each action's S reconstructions (one per sample e) applied once from s0. Also
     stores ``next_states_raw`` ``(K, 2)``, the raw actions' next states."""
+    s0 = np.asarray(study.s0, dtype=np.float64)
     raw_next, decoded_next = car.one_step(s0, enc.actions), car.one_step(s0, enc.decoded)
     samples = enc.decoded.shape[1]
     raw_each = np.repeat(raw_next[:, None], samples, axis=1)  # (K, S, 2): the raw outcome per sample
@@ -111,7 +116,8 @@ def generalisation(enc: Encoded, car: MountainCar, s0: np.ndarray, shuffle: np.n
     return arrays, metrics
 
 
-STUDIES: dict[str, Callable[[Encoded, MountainCar, np.ndarray, np.ndarray], tuple[dict, Metrics]]] = {
+# (encoded actions, car, settings, shuffling permutation of the actions) -> (arrays, metrics)
+STUDIES: dict[str, Callable[[Encoded, MountainCar, StudyConfig, np.ndarray], tuple[dict, Metrics]]] = {
     "multistep": multistep, "onestep": onestep, "generalisation": generalisation}
 
 
@@ -124,8 +130,9 @@ def structure(enc: Encoded, knn: int) -> Metrics:
       against its action), ``..._mu_distance`` the same with the posterior means mu;
     - ``structure/knn_overlap_mu``: share of each action's ``knn`` nearest actions that are among
       its mu's ``knn`` nearest mus (chance: knn / (K - 1));
-    - ``structure/left_right_separability``: held-out accuracy of a linear classifier telling
-      left (a < 0) from right (a > 0) actions by their e (``..._mu``: by mu); 0.5 = chance.
+    - ``structure/left_right_separability``: share of the e on their side of a linear SVM
+      fitted to tell left (a < 0) from right (a > 0) actions (1.0 = two linearly separable
+      clusters, about 0.5 = fully mixed); ``..._mu``: the same for mu.
     """
     samples = enc.e.shape[1]
     actions_each, e_flat = np.repeat(enc.actions, samples), enc.e.reshape(-1, enc.e.shape[-1])
@@ -168,6 +175,14 @@ def dynamics(raw: np.ndarray, decoded: np.ndarray, shuffled: np.ndarray, scale: 
             "dynamics/mean_velocity_error": float(diff[..., 1].mean())}
 
 
+def tracking_steps(raw: np.ndarray, other: np.ndarray, scale: np.ndarray, tolerance: float) -> int:
+    """``dynamics/tracking_steps`` (``..._shuffled`` for permuted actions): steps until the
+    trajectory ``other`` ``(N + 1, 2)`` is first more than ``tolerance`` (in span-scaled state
+    units, as ``dynamics/mean_state_error``) away from ``raw``; N when it never is."""
+    apart = np.linalg.norm((other - raw) / scale, axis=-1) > tolerance
+    return int(np.argmax(apart)) if apart.any() else len(raw) - 1
+
+
 def direction_agreement(s0: np.ndarray, raw_next: np.ndarray, decoded_next: np.ndarray) -> float:
     """``dynamics/direction_agreement``: share of reconstructed actions that change the velocity
     in the same direction as their raw action does, one step from ``s0``."""
@@ -189,11 +204,10 @@ def run(cfg: Config, run: Run) -> None:
     vae = get_action_vae(cfg)
     artifact = ensure_artifact(cfg, "action").path  # already built by get_action_vae: a lookup
     actions_rng, eps_rng, shuffle_rng = study_rngs(cfg)
-    s0 = np.asarray(study.s0, dtype=np.float64)
     with MountainCar(cfg.env) as car:
         enc = encode(vae, sample_actions(study, actions_rng), study.samples_per_action, eps_rng,
                      study.decode, (car.action_low, car.action_high))
-        arrays, metrics = STUDIES[study.name](enc, car, s0, shuffle_rng.permutation(len(enc.actions)))
+        arrays, metrics = STUDIES[study.name](enc, car, study, shuffle_rng.permutation(len(enc.actions)))
     metrics = {**structure(enc, study.knn), **reconstruction(enc), **metrics}
     run.write_bytes(f"studies/{study.name}.npz", npz_bytes(arrays))
     run.write_json("metrics/study.json", {**metrics, **_va_identity(artifact)})
