@@ -21,6 +21,7 @@ from plls_bench.repr import get_action_vae, new_model
 from plls_bench.runner import execute
 from plls_bench.runs import read_json
 from tests.conftest import compose_preset, run_cli
+from tests.synthetic_runs import finish, make_run
 
 PRESETS = {"multistep": "mountaincar_multistep", "onestep": "mountaincar_onestep",
            "generalisation": "mountaincar_generalisation"}
@@ -230,3 +231,20 @@ def test_bad_study_settings_name_the_key(overrides: list[str], key: str, tmp_pat
     with pytest.raises(ConfigError) as err:
         compose_preset("mountaincar_onestep", tmp_path, *overrides)
     assert str(err.value).startswith(f"{key}:") or f"{key}:" in str(err.value), err.value
+
+
+def test_paper_vs_suite_judges_the_study_claims_over_trials(tmp_path: Path) -> None:
+    """claims.csv's `study` rows read metrics/study.json of every trial: mean and bootstrap CI."""
+    for seed, (rho, ratio) in enumerate([(0.95, 0.1), (0.97, 0.5)]):
+        run, cfg = make_run(tmp_path / "runs", "mountaincar_multistep", seed, "quick")
+        run.write_json("metrics/study.json", {"structure/spearman_action_mu_distance": rho,
+                                              "dynamics/state_error_vs_shuffled": ratio})
+        finish(run, cfg)
+    render_all(tmp_path / "runs", tmp_path / "out", only=["claims"])
+    claims = pd.read_csv(tmp_path / "out" / "tables" / "claims.csv").set_index("claim")
+    near = claims.loc["Neighbouring actions have neighbouring action representations (mu)"]
+    assert (near["suite_value"], near["ci_low"], near["ci_high"]) == pytest.approx((0.96, 0.95, 0.97))
+    assert near["verdict"] == "reproduced" and near["budget"] == "quick (2 trials)"
+    assert claims.loc["Reconstructed actions move the car like the raw ones over 1000 steps", "verdict"] == "inconclusive"
+    sampled = claims.loc["Neighbouring actions have neighbouring action representations (sampled e, as plotted)"]
+    assert sampled["verdict"] == "not run at this budget" and "no structure/spearman_action_latent" in sampled["reason"]
