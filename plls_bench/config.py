@@ -255,12 +255,14 @@ class BudgetConfig(Validated):
     train_env_steps: int = MISSING
     eval_every_env_steps: int = MISSING
     eval_episodes: int = MISSING
+    eval_max_steps: int = 0  # cap on a test episode's agent steps; 0 = the env's own time limit
 
     def validate(self) -> None:
         check_choice(self.name, BUDGET_NAMES, "budget.name")
         for key in ("trials", "data_episodes", "data_steps_per_episode", "repr_epochs",
                     "train_env_steps", "eval_every_env_steps", "eval_episodes"):
             check_positive(getattr(self, key), f"budget.{key}")
+        check_nonnegative(self.eval_max_steps, "budget.eval_max_steps")
 
 
 # --------------------------------------------------------------------------- root

@@ -21,19 +21,20 @@ class Episodes:
     lengths: list[int]     # steps of each episode
 
 
-def run_episodes(venv: VecEnv, act: Act, n_episodes: int, seed: int) -> Episodes:
-    """``n_episodes`` episodes, ``venv.num_envs`` at a time; episode j is seeded ``seed + j``."""
+def run_episodes(venv: VecEnv, act: Act, n_episodes: int, seed: int, max_steps: int = 0) -> Episodes:
+    """``n_episodes`` episodes, ``venv.num_envs`` at a time; episode j is seeded ``seed + j``.
+    ``max_steps > 0`` cuts episodes after that many steps (smoke budgets only)."""
     returns: list[float] = []
     lengths: list[int] = []
     for start in range(0, n_episodes, venv.num_envs):
         wave = min(venv.num_envs, n_episodes - start)
-        wave_returns, wave_lengths = _wave(venv, act, seed + start, wave)
+        wave_returns, wave_lengths = _wave(venv, act, seed + start, wave, max_steps)
         returns += wave_returns
         lengths += wave_lengths
     return Episodes(returns, lengths)
 
 
-def _wave(venv: VecEnv, act: Act, seed: int, n_active: int) -> tuple[list[float], list[int]]:
+def _wave(venv: VecEnv, act: Act, seed: int, n_active: int, max_steps: int) -> tuple[list[float], list[int]]:
     """One episode in each of the first ``n_active`` envs (env i seeded ``seed + i``); the other
     envs step along and their data are dropped. VecEnvs reset finished envs automatically, so an
     env's first ``done`` ends its episode here."""
@@ -47,4 +48,6 @@ def _wave(venv: VecEnv, act: Act, seed: int, n_active: int) -> tuple[list[float]
         totals += np.where(running, rewards, 0.0)
         steps += running
         running &= ~dones.astype(bool)
+        if max_steps and steps.max() >= max_steps:
+            break
     return [float(r) for r in totals[:n_active]], [int(n) for n in steps[:n_active]]

@@ -154,11 +154,11 @@ def _steps(cfg: Config, at: Progress) -> dict[str, Any]:
 def _log_eval(cfg: Config, run: Run, model: PPO, venv: VecEnv, seeds: Seeds, at: Progress) -> dict[str, float]:
     """Deterministic and stochastic test episodes (the same seeds at every evaluation); the
     stochastic ones sample from their own torch stream, so evaluating never shifts training's."""
-    n = cfg.budget.eval_episodes
-    greedy = run_episodes(venv, lambda obs: model.predict(obs, deterministic=True)[0], n, seeds.eval)
+    n, cap = cfg.budget.eval_episodes, cfg.budget.eval_max_steps
+    greedy = run_episodes(venv, lambda obs: model.predict(obs, deterministic=True)[0], n, seeds.eval, cap)
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(sub_seed(seeds.eval, _EVAL_SAMPLING, at.iteration))
-        sampled = run_episodes(venv, lambda obs: model.predict(obs, deterministic=False)[0], n, seeds.eval)
+        sampled = run_episodes(venv, lambda obs: model.predict(obs, deterministic=False)[0], n, seeds.eval, cap)
     mean, mean_sampled = _mean(greedy.returns), _mean(sampled.returns)
     run.log("eval", {**_steps(cfg, at), "episode_returns": greedy.returns, "return_mean": mean,
                      "episode_lengths": greedy.lengths, "episode_returns_stochastic": sampled.returns,
