@@ -14,12 +14,14 @@ from plls_bench.composition import compose
 from plls_bench.config import Config
 from plls_bench.envs import make_env
 from plls_bench.evaluate import run_episodes
+from plls_bench.runs import config_dict
 from plls_bench.train.agent import build_vec_env
 from plls_bench.train.networks import PaperCNN, SharedMLP, policy_kwargs
 from plls_bench.train.ppo import Plan
 from tests.conftest import compose_preset
 
-PPO_PRESETS = ["mountaincar_ppo", "carracing_ppo"]
+PPO_PRESETS = ["mountaincar_ppo", "mountaincar_plls_ppo", "carracing_ppo", "carracing_plls_ppo",
+               "carracing_ppo_vs", "carracing_ppo_va"]
 
 
 def policy_spaces(cfg: Config) -> tuple[gym.spaces.Box, gym.spaces.Box]:
@@ -81,13 +83,35 @@ def test_carracing_plain_ppo_is_four_conv_two_fc_as_configured() -> None:
 
 @pytest.mark.parametrize(("overrides", "paper_trainable"), [
     (["+experiment=carracing_ppo"], 1_644_878),
-    (["+experiment=carracing_ppo", "repr/state=vae", "repr/action=vae", "algo.ppo.features_extractor=mlp"], 4354),
+    (["+experiment=carracing_plls_ppo"], 4354),
 ], ids=["plain_ppo", "pl_ls"])
 def test_policy_sizes_are_half_of_table_3(overrides: list[str], paper_trainable: int) -> None:
     """Table 3 counts two copies of each policy (current and old, see README); one copy of ours
     has exactly half its trainable parameters."""
     policy = build_policy(compose([*overrides, "budget=paper"]))
     assert 2 * sum(p.numel() for p in policy.parameters()) == paper_trainable
+
+
+def _flat(tree: dict, prefix: str = "") -> dict[str, object]:
+    out: dict[str, object] = {}
+    for key, value in tree.items():
+        out.update(_flat(value, f"{prefix}{key}.") if isinstance(value, dict) else {f"{prefix}{key}": value})
+    return out
+
+
+@pytest.mark.parametrize(("presets", "may_differ"), [
+    (["carracing_plls_ppo", "carracing_ppo", "carracing_ppo_vs", "carracing_ppo_va"],
+     ("repr.state.", "repr.action.", "algo.ppo.features_extractor")),
+    (["mountaincar_plls_ppo", "mountaincar_ppo"], ("repr.action.", "algo.ppo.learning_rate")),
+], ids=["carracing", "mountaincar"])
+def test_methods_of_a_task_differ_only_in_representations_and_network(presets: list[str],
+                                                                      may_differ: tuple[str, ...]) -> None:
+    """Same Table 1 / Table 2 settings for every method of a task (Sec. 5.1, 5.2); only V_s / V_a,
+    the trunk the observations need, and plain PPO's MountainCar learning rate change."""
+    configs = [_flat(config_dict(compose([f"+experiment={p}", "budget=paper"]))) for p in presets]
+    for other in configs[1:]:
+        differing = {k for k in configs[0] if configs[0][k] != other[k]} - {"experiment"}
+        assert differing and all(k.startswith(may_differ) for k in differing), differing
 
 
 def test_a_trunk_that_does_not_fit_the_observations_is_refused() -> None:
