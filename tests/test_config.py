@@ -19,6 +19,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return []
     if group == "experiment":
         return [f"+experiment={name}"]
+    if group == "hydra/launcher":
+        return [f"hydra/launcher={name}"]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name == "ppo" else []
         extra += ["env=mountaincar"] if group == "algo" else []
