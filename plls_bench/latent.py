@@ -13,3 +13,8 @@ def wrap_latent(venv: VecEnv, cfg: Config) -> VecEnv:
     if cfg.repr.state.kind == "none" and cfg.repr.action.kind == "none":
         return venv
     raise NotImplementedError("latent wrappers (V_s, V_a) come with issue 3: plls_bench/latent.py")
+
+
+def latent_modules(venv: VecEnv) -> dict:
+    """Stand-in: no latent wrappers, no frozen modules."""
+    return {}

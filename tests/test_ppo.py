@@ -14,7 +14,7 @@ from plls_bench.composition import compose
 from plls_bench.config import Config
 from plls_bench.envs import make_env
 from plls_bench.evaluate import run_episodes
-from plls_bench.runs import config_dict
+from plls_bench.runs import HASH_EXCLUDED_KEYS, config_dict
 from plls_bench.train.agent import build_vec_env
 from plls_bench.train.networks import PaperCNN, SharedMLP, policy_kwargs
 from plls_bench.train.ppo import Plan
@@ -110,7 +110,8 @@ def test_methods_of_a_task_differ_only_in_representations_and_network(presets: l
     the trunk the observations need, and plain PPO's MountainCar learning rate change."""
     configs = [_flat(config_dict(compose([f"+experiment={p}", "budget=paper"]))) for p in presets]
     for other in configs[1:]:
-        differing = {k for k in configs[0] if configs[0][k] != other[k]} - {"experiment"}
+        ignored = {"experiment", *HASH_EXCLUDED_KEYS}  # names and speed knobs (torch_threads)
+        differing = {k for k in configs[0] if configs[0][k] != other[k]} - ignored
         assert differing and all(k.startswith(may_differ) for k in differing), differing
 
 

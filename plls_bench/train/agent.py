@@ -8,13 +8,13 @@ from typing import Any
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
-from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 from torch import nn
 
 from plls_bench.composition import config_from_dict
 from plls_bench.config import Config
 from plls_bench.envs import make_vec_env
-from plls_bench.latent import wrap_latent
+from plls_bench.latent import latent_modules, wrap_latent
 from plls_bench.runs import read_json
 from plls_bench.train.checkpoint import latest
 from plls_bench.train.networks import policy_kwargs
@@ -39,32 +39,14 @@ def new_model(cfg: Config, venv: VecEnv) -> PPO:
                device=cfg.device, verbose=0)
 
 
-def frozen_modules(venv: VecEnv) -> dict[str, tuple[nn.Module, tuple[int, ...]]]:
-    """The frozen representation modules applied by the wrappers around ``venv``, by attribute
-    name, with the shape of one input: the inner env's observation for a wrapper that changes
-    observations (V_s's encoder), the wrapper's own action for one that changes actions (V_a's
-    decoder)."""
-    found: dict[str, tuple[nn.Module, tuple[int, ...]]] = {}
-    while isinstance(venv, VecEnvWrapper):
-        inner = venv.venv
-        changes_obs = venv.observation_space != inner.observation_space
-        shape = inner.observation_space.shape if changes_obs else venv.action_space.shape
-        for name, value in vars(venv).items():
-            if isinstance(value, nn.Module):
-                found[name] = (value, tuple(shape))
-        venv = inner
-    return found
-
-
 def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str, torch.Tensor]]:
-    """Every module the method runs (the policy, trained; V_s / V_a parts, frozen) and an example
-    input batch for each, for ``params.json`` and ``architecture.json``."""
-    modules: dict[str, nn.Module] = {"policy": model.policy}
-    examples = {"policy": torch.zeros(1, *model.observation_space.shape)}
-    for name, (module, shape) in frozen_modules(venv).items():
-        modules[name] = module
-        examples[name] = torch.zeros(1, *shape)
-    return modules, examples
+    """Every module the method runs (the policy, trained; V_s's encoder / V_a's decoder, frozen)
+    and an example input batch for each, for ``params.json`` and ``architecture.json``."""
+    modules: dict[str, nn.Module] = {"policy": model.policy, **latent_modules(venv)}
+    shapes = {"policy": model.observation_space.shape,
+              "V_s.encoder": venv.unwrapped.observation_space.shape,  # the raw image
+              "V_a.decoder": venv.action_space.shape}                 # the policy's e
+    return modules, {name: torch.zeros(1, *shapes[name]) for name in modules}
 
 
 def load_trained(run_dir: str | Path, device: str = "cpu") -> tuple[Config, PPO]:
