@@ -43,19 +43,20 @@ def measure(preset: str, budget: str, iterations: int, runs_dir: str) -> dict[st
     venv = build_vec_env(cfg, cfg.algo.ppo.n_envs, seed)
     model = new_model(cfg, venv)
     steps = cfg.algo.ppo.steps_per_iteration
-    stats, rollout, total = EpisodeStats(), [], []
+    stats, rollout, total, cpu = EpisodeStats(), [], [], []
     try:
         for i in range(iterations + 1):  # iteration 0 warms up
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             model.learn(steps, callback=stats, reset_num_timesteps=False, log_interval=None)
             if i:
                 rollout.append(stats.rollout_end - start)
                 total.append(time.perf_counter() - start)
+                cpu.append(time.process_time() - start_cpu)
     finally:
         venv.close()
-    r, t = statistics.median(rollout), statistics.median(total)
+    r, t, c = statistics.median(rollout), statistics.median(total), statistics.median(cpu)
     return {"steps": steps, "rollout_s": r, "update_s": t - r, "rollout_sps": steps / r, "sps": steps / t,
-            "threads": torch.get_num_threads()}
+            "cpu_s": c, "cpu_sps": steps / c, "threads": torch.get_num_threads()}
 
 
 def machine() -> str:
@@ -89,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     for preset in args.presets:
         m = measure(preset, args.budget, args.iterations, args.runs)
         rows.append(f"| `{preset}` | {m['steps']} | {m['rollout_s']:.2f} | {m['update_s']:.2f} | "
-                    f"{m['rollout_sps']:.0f} | **{m['sps']:.0f}** | {m['threads']} |")
+                    f"{m['rollout_sps']:.0f} | **{m['sps']:.0f}** | {m['cpu_s']:.2f} | {m['cpu_sps']:.0f} | "
+                    f"{m['threads']} |")
         print(rows[-1], flush=True)
     after = machine()
     print(f"machine (after): {after}")
@@ -98,9 +100,11 @@ def main(argv: list[str] | None = None) -> int:
         f"Command: `{command}`  ", f"Machine: {after}  ",
         f"Median of {args.iterations} PPO iterations after one warm-up; one iteration = n_envs x n_steps "
         "env steps, rollout (env steps, policy forward, V_s / V_a forward) then the SB3 update "
-        "(n_epochs over minibatches). No evaluation.", "",
-        "| preset | env steps / iteration | rollout s | update s | rollout steps/s | steps/s | torch threads |",
-        "|---|---|---|---|---|---|---|", *rows])
+        "(n_epochs over minibatches). No evaluation. CPU s is the process's CPU time per iteration "
+        "(in-process vector env): steps per CPU-second are less disturbed by other load than steps/s.",
+        "", "| preset | env steps / iteration | rollout s | update s | rollout steps/s | steps/s | "
+        "CPU s / iteration | steps per CPU-s | torch threads |",
+        "|---|---|---|---|---|---|---|---|---|", *rows])
     if not args.no_write:
         write_section(text)
     return 0
