@@ -25,6 +25,7 @@ def overrides_for(yaml_path: Path) -> list[str]:
         extra = ["runner=ppo"] if name == "ppo" else []
         extra += ["env=mountaincar"] if group == "algo" else []
         extra += ["env=cheetah", "runner=dbc"] if name == "dbc" else []
+        extra += ["env=carracing"] if group == "repr/state" and name == "vae" else []  # V_s needs frames
         return [f"{group}={name}", *extra]
     if group.endswith("per_env"):  # <choice>_<env> or <env>_<profile> (budget)
         first, second = name.rsplit("_", 1)
