@@ -15,7 +15,8 @@ from plls_bench.train.agent import build_vec_env, load_trained
 from plls_bench.train.ppo import Plan
 from tests.conftest import compose_preset, run_cli, start_cli
 
-PPO_PRESETS = ["mountaincar_ppo", "carracing_ppo"]
+PPO_PRESETS = ["mountaincar_ppo", "mountaincar_plls_ppo", "carracing_ppo", "carracing_plls_ppo",
+               "carracing_ppo_vs", "carracing_ppo_va"]
 EVAL_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "episode_returns", "return_mean",
              "episode_lengths", "episode_returns_stochastic", "return_mean_stochastic"}
 TRAIN_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "loss/policy", "loss/value",
@@ -46,13 +47,26 @@ def check_run_contract(run_dir: Path, plan: Plan, eval_episodes: int) -> None:
     assert list(run_dir.glob("sb3/*/events.out.tfevents.*")), "TensorBoard output"
 
 
+@pytest.fixture(scope="module")
+def shared_runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One runs_dir for the presets of this module: random-policy data and V_s / V_a artifacts
+    are built once and reused, as the trials of a task share them."""
+    return tmp_path_factory.mktemp("ppo") / "runs"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("preset", PPO_PRESETS)
-def test_preset_runs_end_to_end_at_smoke_budget(preset: str, runs_dir: Path) -> None:
-    cfg = compose_preset(preset, runs_dir)
-    run_dir = runs_dir / preset / "default" / "seed=0"
+def test_preset_runs_end_to_end_at_smoke_budget(preset: str, shared_runs: Path) -> None:
+    cfg = compose_preset(preset, shared_runs)
+    run_dir = shared_runs / preset / "default" / "seed=0"
     assert execute(cfg, run_dir) == "done"
     check_run_contract(run_dir, Plan.of(cfg), cfg.budget.eval_episodes)
+    params = json.loads((run_dir / "metrics" / "params.json").read_text())
+    frozen = {"V_s.encoder"} if cfg.repr.state.kind == "vae" else set()
+    frozen |= {"V_a.decoder"} if cfg.repr.action.kind == "vae" else set()
+    assert set(params["modules"]) == {"policy", *frozen}, "total counts every module run, frozen ones too"
+    assert params["total"] == sum(m["total"] for m in params["modules"].values())
+    assert (params["total"] > params["trainable"]) == bool(frozen)
     loaded_cfg, model = load_trained(run_dir)
     assert loaded_cfg == cfg
     venv = build_vec_env(cfg, 1, seed=0)
@@ -74,17 +88,19 @@ def test_evaluation_never_shifts_training(runs_dir: Path) -> None:
 
 
 @pytest.mark.slow
-def test_hyper_parameters_are_overridable_from_the_command_line(runs_dir: Path) -> None:
-    done = run_cli("+experiment=mountaincar_ppo", f"runs_dir={runs_dir}", "progress=false",
-                   "algo.ppo.learning_rate=1e-3", "algo.ppo.n_epochs=2", "algo.ppo.policy_hidden=[16]")
+def test_hyper_parameters_are_overridable_from_the_command_line(shared_runs: Path) -> None:
+    done = run_cli("+experiment=mountaincar_plls_ppo", f"runs_dir={shared_runs}", "progress=false",
+                   "algo.ppo.learning_rate=1e-3", "repr.action.latent_dim=8", "algo.ppo.n_epochs=2",
+                   "algo.ppo.policy_hidden=[16]")
     assert done.returncode == 0, done.stdout + done.stderr
-    run_dirs = list(runs_dir.glob("mountaincar_ppo/*/seed=0"))
+    run_dirs = [p for p in shared_runs.glob("mountaincar_plls_ppo/*/seed=0") if p.parent.name != "default"]
     assert len(run_dirs) == 1 and "learning_rate=1e-3" in run_dirs[0].parent.name
     trains = Run(run_dirs[0]).read_metrics("train")
     assert trains[0]["train/learning_rate"] == pytest.approx(1e-3)
     assert [r["train/n_updates"] for r in trains] == [2, 4], "n_epochs=2 per iteration reached SB3"
     params = json.loads((run_dirs[0] / "metrics" / "params.json").read_text())
-    assert params["trainable"] == (2 * 16 + 16) + (16 + 1) + 1 + (16 + 1)  # trunk, mean, log-std, value
+    e = 8  # the policy now emits e in R^8 through a V_a trained with latent_dim=8
+    assert params["modules"]["policy"]["trainable"] == (2 * 16 + 16) + (16 * e + e) + e + (16 + 1)
 
 
 @pytest.mark.slow
