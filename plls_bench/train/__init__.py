@@ -1,0 +1,1 @@
+"""Policy learning on stable-baselines3: the ``ppo`` runner, the paper's networks, checkpoints."""
