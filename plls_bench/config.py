@@ -371,6 +371,27 @@ class StudyConfig(Validated):
         return len(self.action_ranges) * self.actions_per_range
 
 
+@dataclass
+class FilmstripConfig(Validated):
+    """A filmstrip of a trained policy (Figs 11, 19, 22): one evaluation episode, a frame every
+    ``interval`` env frames (steps counting action repeat), and its last frame.
+
+    ``python -m plls_bench.analysis.filmstrip RUN_DIR`` composes ``conf/filmstrip/<env>.yaml``.
+    """
+
+    interval: int = MISSING
+    reset_options: dict[str, float] = field(default_factory=dict)
+    goal: bool = False
+    episode: int = 0
+    frame_height: int = 200
+
+    def validate(self) -> None:
+        check_positive(self.interval, "filmstrip.interval")
+        check(isinstance(self.episode, int) and self.episode >= 0, "filmstrip.episode",
+              f"must be a non-negative int, got {self.episode!r}")
+        check_positive(self.frame_height, "filmstrip.frame_height")
+
+
 # --------------------------------------------------------------------------- root
 RUNNERS = ("collect", "repr", "ppo", "dbc", "study")
 
@@ -393,6 +414,7 @@ class Config(Validated):
     algo: AlgoConfig = field(default_factory=AlgoConfig)
     budget: BudgetConfig = field(default_factory=BudgetConfig)
     study: Optional[StudyConfig] = None
+    filmstrip: Optional[FilmstripConfig] = None
 
     def validate(self) -> None:
         check_choice(self.runner, RUNNERS, "runner")

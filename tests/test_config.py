@@ -23,6 +23,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"hydra/launcher={name}"]
     if group == "study":  # a MountainCar latent-space study needs V_a
         return [f"+study={name}", "runner=study", "repr/action=vae"]
+    if group == "filmstrip":  # one per task, named after it
+        return [f"+filmstrip={name}", f"env={name}"]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name == "ppo" else []
         extra += ["env=mountaincar"] if group == "algo" else []
