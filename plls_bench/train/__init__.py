@@ -1,0 +1,1 @@
+"""Policy-learning runners (PPO, DBC)."""
