@@ -15,13 +15,7 @@ from tests.conftest import compose_preset
 STEPS = 600  # measured: 0.97 after 600 updates, a random policy 0.17-0.22
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    """Small networks gain nothing from threads, and on a busy 2-core machine threads spin-wait."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def small_cfg(runs_dir: Path, *overrides: str):

@@ -77,13 +77,7 @@ def compare(latents: np.ndarray) -> tuple[float, float]:
     return float(rho), float(latent[BISIMILAR] / np.median(latent[rows, cols][others]))
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread():
-    """Tiny MLPs gain nothing from threads, and on a busy 2-core machine threads spin-wait."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def test_dbc_latent_distances_rank_pairs_like_the_exact_metric(runs_dir: Path) -> None:
