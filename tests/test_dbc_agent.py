@@ -118,3 +118,16 @@ def test_learns_a_contextual_bandit_from_random_actions(runs_dir: Path) -> None:
     random_policy = reward(rng.uniform(-1, 1, size=(500, action_dim)), test_x).mean()
     assert reward(best[:1], x[:1]) == pytest.approx(1.0)
     assert random_policy < 0.5 and learned > 0.9, (learned, random_policy)
+
+
+def test_accounting_counts_shared_conv_weights_once(runs_dir: Path) -> None:
+    from plls_bench.train.dbc_accounting import accounting
+
+    agent = DBCAgent((9, 84, 84), 6, small_cfg(runs_dir))
+    params, architecture = accounting(agent, (9, 84, 84))
+    every = {id(p): p.numel() for m in agent.modules().values() for p in m.parameters()}
+    assert params["total"] == sum(every.values()), "each parameter once, the shared trunk included"
+    assert params["trainable"] == params["total"] - params["modules"]["critic_target"]["total"]
+    conv = [row for row in architecture["encoder"] if row["type"] == "Conv2d"]
+    assert conv[0]["output_shape"] == [1, 4, 41, 41] and conv[-1]["output_shape"] == [1, 4, 35, 35]
+    assert architecture["encoder"][-1]["type"] == "LayerNorm" and architecture["encoder"][-1]["output_shape"] == [1, 8]

@@ -52,7 +52,7 @@ def check_contract(run_dir: Path) -> list[dict]:
     assert params["modules"]["critic_target"]["trainable"] == 0
     convs = [layer for layer in read_json(run_dir / "metrics" / "architecture.json")["encoder"]
              if layer["type"] == "Conv2d"]
-    assert [c["output_shape"] for c in convs] == [[32, 41, 41], [32, 39, 39], [32, 37, 37], [32, 35, 35]]
+    assert [c["output_shape"] for c in convs] == [[1, 32, 41, 41], [1, 32, 39, 39], [1, 32, 37, 37], [1, 32, 35, 35]]
     return evals
 
 

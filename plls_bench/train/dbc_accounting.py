@@ -4,7 +4,8 @@ Modules: ``encoder`` (the critic's conv trunk, shared with the actor, and its Li
 ``actor`` (its own Linear + LayerNorm head and MLP), ``critic`` (twin Q), ``critic_target``
 (Polyak-averaged, so not trainable), ``transition_model``, ``reward_decoder`` and, for PL-LS, the
 frozen ``action_decoder`` (V_a's decoder). Shared parameters are counted once. Output shapes are
-recorded by hooks during one probe forward pass, without the batch dimension.
+recorded by hooks during one probe forward pass on a batch of one (batch dimension included);
+``trainable`` is the number of parameters the learner updates.
 """
 from __future__ import annotations
 
@@ -52,8 +53,9 @@ def _layers(module: nn.Module, trainable: bool, shapes: dict[int, list[int]]) ->
     for name, leaf in module.named_modules():
         if not _is_leaf(leaf):
             continue
+        count = sum(p.numel() for p in leaf.parameters(recurse=False))
         rows.append({"name": name, "type": type(leaf).__name__, "output_shape": shapes.get(id(leaf)),
-                     "params": sum(p.numel() for p in leaf.parameters(recurse=False)), "trainable": trainable})
+                     "params": count, "trainable": count if trainable else 0})
     return rows
 
 
@@ -63,7 +65,7 @@ def accounting(agent: DBCAgent, obs_shape: tuple[int, ...],
     groups = {**module_groups(agent), **{k: (m, False) for k, m in (extra or {}).items()}}
     shapes: dict[int, list[int]] = {}
     def record(module: nn.Module, _inputs: Any, output: torch.Tensor) -> None:
-        shapes.setdefault(id(module), list(output.shape[1:]))
+        shapes.setdefault(id(module), list(output.shape))
 
     hooks = [leaf.register_forward_hook(record)
              for module, _ in groups.values() for leaf in module.modules() if _is_leaf(leaf)]
