@@ -140,7 +140,7 @@ class DBCTrainer:
                 window = Window(self.progress)  # rates exclude evaluation time
             if self.progress.agent_steps >= self.total_agent_steps:
                 break
-            obs, reward, finished = self._step(obs, window)
+            obs, reward, finished = self.step(obs, window)
             episode_return += reward
             if finished:  # one train.jsonl record per training episode (and one before each eval)
                 window.returns.append(episode_return)
@@ -149,16 +149,21 @@ class DBCTrainer:
             bar.update(1)
         bar.close()
 
-    def _step(self, obs: np.ndarray, window: Window) -> tuple[np.ndarray, float, bool]:
+    def step(self, obs: np.ndarray, window: Window | None = None,
+             updates: bool = True) -> tuple[np.ndarray, float, bool]:
+        """One agent step from observation ``(1, *O)``: act, update (unless ``updates`` is False),
+        step the env, store the transition. Returns the next observation, reward and done."""
         step, init = self.progress.agent_steps, self.dbc.init_steps
         if step < init:
             action = self.rng.uniform(-1.0, 1.0, size=(1, self.action_dim)).astype(np.float32)
         else:
             action = self.agent.act(obs, deterministic=False)
-        if step >= init:
+        if step >= init and updates:
             for _ in range(init if step == init else 1):
                 batch = self.replay.sample(self.dbc.batch_size, self.rng, self.device)
-                window.add(self.agent.update(batch, step))
+                metrics = self.agent.update(batch, step)
+                if window is not None:
+                    window.add(metrics)
         next_obs, reward, done, info = self.train_env.step(to_env_action(action, self.train_env.action_space))
         terminated = bool(done[0]) and not info[0].get("TimeLimit.truncated", False)
         final = info[0]["terminal_observation"] if done[0] else next_obs[0]
