@@ -97,29 +97,59 @@ class EnvConfig(Validated):
 # --------------------------------------------------------------------------- representations
 @dataclass
 class StateReprConfig(Validated):
-    """V_s: convolutional VAE over image observations (World Models style)."""
+    """V_s: convolutional VAE over image observations (World Models style).
+
+    The encoder is ``len(channels)`` stride-2 convolutions (no padding) with ReLU; the decoder maps
+    z to the encoder's last feature map and mirrors it with stride-2 transposed convolutions whose
+    kernels must bring the image back to its exact size (checked against ``env.image_size``).
+    """
 
     kind: str = "none"
     latent_dim: int = 32
     channels: list[int] = field(default_factory=lambda: [32, 64, 128, 256])
     kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 4, 4])
-    deconv_kernel_sizes: list[int] = field(default_factory=lambda: [5, 5, 6, 6])
+    deconv_kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 5, 4])
     kl_weight: float = 1.0
+    likelihood_std: float = 0.7071067811865476
     learning_rate: float = 1e-4
     batch_size: int = 100
+    val_fraction: float = 0.1
 
     def validate(self) -> None:
         check_choice(self.kind, REPR_KINDS, "repr.state.kind")
         check_positive(self.latent_dim, "repr.state.latent_dim")
         check_nonnegative(self.kl_weight, "repr.state.kl_weight")
+        check_positive(self.likelihood_std, "repr.state.likelihood_std")
         check_positive(self.learning_rate, "repr.state.learning_rate")
         check_positive(self.batch_size, "repr.state.batch_size")
+        check_fraction(self.val_fraction, "repr.state.val_fraction")
+        check(len(self.channels) > 0, "repr.state.channels", "needs at least one conv layer")
         check(len(self.channels) == len(self.kernel_sizes), "repr.state.kernel_sizes",
               "needs one kernel size per entry of repr.state.channels")
         check(len(self.deconv_kernel_sizes) == len(self.channels), "repr.state.deconv_kernel_sizes",
               "needs one kernel size per entry of repr.state.channels")
         for i, width in enumerate(self.channels):
             check_positive(width, f"repr.state.channels[{i}]")
+        for name in ("kernel_sizes", "deconv_kernel_sizes"):
+            for i, size in enumerate(getattr(self, name)):
+                check_positive(size, f"repr.state.{name}[{i}]")
+
+    def feature_sizes(self, image_size: int) -> list[int]:
+        """Spatial sizes through the encoder: ``[image_size, ..., last feature map]``."""
+        sizes = [image_size]
+        for kernel in self.kernel_sizes:
+            sizes.append((sizes[-1] - kernel) // 2 + 1)
+        return sizes
+
+    def decoded_size(self, image_size: int) -> int:
+        """Spatial size the transposed convolutions produce from the last feature map."""
+        size = self.feature_sizes(image_size)[-1]
+        for kernel in self.deconv_kernel_sizes:
+            size = (size - 1) * 2 + kernel
+        return size
+
+
+ACTIVATIONS = ("relu", "elu", "tanh")
 
 
 @dataclass
@@ -130,17 +160,23 @@ class ActionReprConfig(Validated):
     latent_dim: int = 3
     encoder_hidden: list[int] = field(default_factory=lambda: [32, 16, 8])
     decoder_hidden: list[int] = field(default_factory=lambda: [8, 16, 32])
+    activation: str = "relu"
     kl_weight: float = 1.0
+    likelihood_std: float = 0.1
     learning_rate: float = 1e-3
     batch_size: int = 64
+    val_fraction: float = 0.1
     latent_action_bound: float = 3.0
 
     def validate(self) -> None:
         check_choice(self.kind, REPR_KINDS, "repr.action.kind")
         check_positive(self.latent_dim, "repr.action.latent_dim")
+        check_choice(self.activation, ACTIVATIONS, "repr.action.activation")
         check_nonnegative(self.kl_weight, "repr.action.kl_weight")
+        check_positive(self.likelihood_std, "repr.action.likelihood_std")
         check_positive(self.learning_rate, "repr.action.learning_rate")
         check_positive(self.batch_size, "repr.action.batch_size")
+        check_fraction(self.val_fraction, "repr.action.val_fraction")
         check_positive(self.latent_action_bound, "repr.action.latent_action_bound")
         for name in ("encoder_hidden", "decoder_hidden"):
             for i, width in enumerate(getattr(self, name)):
@@ -274,6 +310,7 @@ class BudgetConfig(Validated):
     data_episodes: int = MISSING
     data_steps_per_episode: int = MISSING
     repr_epochs: int = MISSING
+    repr_action_epochs: Optional[int] = None  # V_a epochs when set; None: repr_epochs
     train_env_steps: int = MISSING
     eval_every_env_steps: int = MISSING
     eval_episodes: int = MISSING
@@ -283,6 +320,15 @@ class BudgetConfig(Validated):
         for key in ("trials", "data_episodes", "data_steps_per_episode", "repr_epochs",
                     "train_env_steps", "eval_every_env_steps", "eval_episodes"):
             check_positive(getattr(self, key), f"budget.{key}")
+        if self.repr_action_epochs is not None:
+            check_positive(self.repr_action_epochs, "budget.repr_action_epochs")
+
+    def epochs_for(self, which: str) -> int:
+        """Training epochs of V_s (``state``) or V_a (``action``). V_a may get its own count:
+        an epoch of it costs about a thousandth of a V_s epoch on the same data."""
+        if which == "action" and self.repr_action_epochs is not None:
+            return self.repr_action_epochs
+        return self.repr_epochs
 
 
 # --------------------------------------------------------------------------- root
@@ -319,6 +365,24 @@ class Config(Validated):
         if self.runner in ("ppo", "dbc"):
             check(self.algo.name == self.runner, "algo",
                   f"runner={self.runner} needs algo={self.runner}, got algo.name={self.algo.name}")
+        if self.runner == "repr":
+            check("vae" in (self.repr.state.kind, self.repr.action.kind), "repr",
+                  "runner=repr needs repr/state=vae or repr/action=vae (both are none)")
+        if self.repr.state.kind == "vae":
+            self._validate_state_vae()
+
+    def _validate_state_vae(self) -> None:
+        """V_s needs stored single frames, and its decoder must rebuild the frame's exact size."""
+        state, size = self.repr.state, self.env.image_size
+        check(self.env.data_pixels and self.env.frame_stack == 1, "repr.state.kind",
+              f"vae needs single-frame pixel data; env {self.env.name} has data_pixels="
+              f"{self.env.data_pixels}, frame_stack={self.env.frame_stack}")
+        sizes = state.feature_sizes(size)
+        check(sizes[-1] >= 1, "repr.state.kernel_sizes",
+              f"shrink a {size}x{size} image to nothing: spatial sizes {sizes}")
+        check(state.decoded_size(size) == size, "repr.state.deconv_kernel_sizes",
+              f"{state.deconv_kernel_sizes} decode the {sizes[-1]}x{sizes[-1]} feature map to "
+              f"{state.decoded_size(size)}x{state.decoded_size(size)}, not {size}x{size}")
 
 
 def register_configs() -> None:

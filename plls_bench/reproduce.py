@@ -50,6 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--profile", choices=BUDGET_NAMES, default="paper", help="compute profile")
     parser.add_argument("--only", nargs="+", metavar="PRESET", help="run only these presets")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
+    parser.add_argument("--out", default="results", help="where the results collector writes tables and figures")
+    parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
     parser.add_argument("--dry-run", action="store_true", help="print the plan, run nothing")
     args = parser.parse_args(argv)
     try:
@@ -69,10 +71,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[reproduce] {item.experiment}: {status} in {time.perf_counter() - start:.0f}s", flush=True)
         if done.returncode != 0:
             failed.append(item.experiment)
+    report = 0 if args.no_report else collect_results(args.runs, args.out)
     if failed:
         print(f"[reproduce] failed presets: {', '.join(failed)}", file=sys.stderr)
         return 1
-    return 0
+    return report
+
+
+def collect_results(runs_dir: str, out_dir: str) -> int:
+    """Regenerate every table and figure from the runs (gaps from failed presets are reported)."""
+    from plls_bench.report.__main__ import main as report_main  # lazy: plotting stack
+
+    Path(runs_dir).mkdir(parents=True, exist_ok=True)  # a profile whose presets all failed
+    print(f"[reproduce] results collector: {runs_dir} -> {out_dir}", flush=True)
+    return report_main(["--runs", runs_dir, "--out", out_dir, "--no-progress"])
 
 
 if __name__ == "__main__":

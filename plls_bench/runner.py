@@ -18,6 +18,7 @@ log = logging.getLogger(__name__)
 
 RUNNERS: dict[str, str] = {
     "collect": "plls_bench.data:run",
+    "repr": "plls_bench.repr.train:run",
     "dbc": "plls_bench.train.dbc:run",
 }
 

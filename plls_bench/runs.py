@@ -20,7 +20,7 @@ import re
 import shutil
 import tempfile
 import time
-from dataclasses import asdict, is_dataclass
+from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -69,21 +69,40 @@ def append_jsonl(path: Path, record: dict[str, Any]) -> None:
         os.fsync(handle.fileno())
 
 
-def read_jsonl(path: Path) -> list[dict[str, Any]]:
-    """All complete records; a torn last line (a kill mid-write) or a corrupt line is skipped."""
-    records: list[dict[str, Any]] = []
+@dataclass(frozen=True)
+class JsonlScan:
+    """What a jsonl file holds: its complete records and what had to be skipped."""
+
+    records: list[Any]
+    corrupt_lines: tuple[int, ...]  # 1-based numbers of complete lines that are not valid JSON
+    torn_tail: bool                 # the last line has no newline: a kill mid-write
+
+
+def scan_jsonl(path: Path) -> JsonlScan | None:
+    """Parse ``path`` line by line, keeping account of skipped lines; None when it is missing or
+    unreadable. The results collector uses this to report damage that :func:`read_jsonl` hides."""
     try:
         text = Path(path).read_text()
-    except OSError:
-        return records
-    for line in text.splitlines(keepends=True):
+    except (OSError, UnicodeDecodeError):
+        return None
+    records: list[Any] = []
+    corrupt: list[int] = []
+    torn = False
+    for number, line in enumerate(text.splitlines(keepends=True), 1):
         if not line.endswith("\n"):
+            torn = True
             break
         try:
             records.append(json.loads(line))
         except ValueError:
-            continue
-    return records
+            corrupt.append(number)
+    return JsonlScan(records, tuple(corrupt), torn)
+
+
+def read_jsonl(path: Path) -> list[dict[str, Any]]:
+    """All complete records; a torn last line (a kill mid-write) or a corrupt line is skipped."""
+    scan = scan_jsonl(path)
+    return scan.records if scan is not None else []
 
 
 # --------------------------------------------------------------------------- config identity

@@ -1,10 +1,12 @@
 """Shared fixtures: every test composes the shipped configs and writes under a temp runs_dir."""
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any, Callable
 
 import pytest
 
@@ -43,3 +45,18 @@ def run_cli(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.run([sys.executable, "-m", "plls_bench", *args], cwd=REPO_ROOT, env=env,
                           capture_output=True, text=True, timeout=timeout)
+
+
+def in_two_processes(target: Callable[..., None], *args: Any, timeout: float = 240) -> list[Any]:
+    """Start ``target(*args, queue)`` in two spawned processes at once; return what each put on
+    the queue (e.g. ``(artifact.built, str(artifact.path))``). Both must exit cleanly."""
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    procs = [ctx.Process(target=target, args=(*args, queue)) for _ in range(2)]
+    for proc in procs:
+        proc.start()
+    results = [queue.get(timeout=timeout) for _ in procs]
+    for proc in procs:
+        proc.join(timeout=60)
+        assert proc.exitcode == 0
+    return results

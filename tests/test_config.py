@@ -19,10 +19,13 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return []
     if group == "experiment":
         return [f"+experiment={name}"]
+    if group == "hydra/launcher":
+        return [f"hydra/launcher={name}"]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name == "ppo" else []
         extra += ["env=mountaincar"] if group == "algo" and not name.startswith("dbc") else []
         extra += ["env=cheetah", "runner=dbc"] if name.startswith("dbc") else []
+        extra += ["env=carracing"] if group == "repr/state" and name == "vae" else []  # V_s needs frames
         return [f"{group}={name}", *extra]
     if group.endswith("per_env"):  # <choice>_<env> or <env>_<profile> (budget)
         first, second = name.rsplit("_", 1)

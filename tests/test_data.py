@@ -10,7 +10,7 @@ import pytest
 
 from plls_bench.composition import compose
 from plls_bench.data import get_dataset
-from tests.conftest import compose_preset
+from tests.conftest import compose_preset, in_two_processes
 
 
 def data_bytes(path: Path) -> str:
@@ -73,15 +73,7 @@ def _build_in_child(runs_dir: str, queue: mp.Queue) -> None:
 
 
 def test_two_processes_build_the_dataset_once(tmp_path: Path) -> None:
-    ctx = mp.get_context("spawn")
-    queue = ctx.Queue()
-    procs = [ctx.Process(target=_build_in_child, args=(str(tmp_path), queue)) for _ in range(2)]
-    for proc in procs:
-        proc.start()
-    results = [queue.get(timeout=240) for _ in procs]
-    for proc in procs:
-        proc.join(timeout=60)
-        assert proc.exitcode == 0
+    results = in_two_processes(_build_in_child, str(tmp_path))
     assert sorted(built for built, _ in results) == [False, True]
     assert results[0][1] == results[1][1]
     assert not list((tmp_path / "artifacts" / "data").glob(".*tmp*")), "no temp dirs left behind"

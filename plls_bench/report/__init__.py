@@ -1,0 +1,10 @@
+"""The results collector: ``python -m plls_bench.report`` turns run directories into every table
+and figure of the paper, plus confidence intervals and a "paper vs suite" verdict table.
+
+Public entry points: :func:`render_all` (render every registry id from a runs dir, returning each
+id's status) and :data:`ENTRIES` / :data:`BY_ID` (the registry).
+"""
+from plls_bench.report.collect import IdStatus, ReportError, render_all
+from plls_bench.report.registry import BY_ID, ENTRIES
+
+__all__ = ["BY_ID", "ENTRIES", "IdStatus", "ReportError", "render_all"]

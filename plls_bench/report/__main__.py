@@ -1,0 +1,60 @@
+"""``python -m plls_bench.report [--runs results/runs] [--out results] [--only ID ...] [--list]``
+
+Regenerates every table and figure of the paper from run directories (see ``registry.py``).
+Exit status: 0 when every id rendered (gaps are reported, not errors), 1 when an id failed to
+render (a collector bug: its traceback is logged), 2 for bad arguments (nothing written).
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import shlex
+import sys
+
+from plls_bench.report.collect import PAPER_DIR, ReportError, render_all
+from plls_bench.report.registry import ENTRIES, builder_name
+from plls_bench.report.returns import DEFAULT_X_AXIS, X_AXES
+
+
+def print_registry() -> None:
+    for entry in ENTRIES:
+        presets = ", ".join(entry.experiments)
+        print(f"{entry.id:7s} {entry.ref:18s} {entry.kind:6s} {entry.title}\n"
+              f"        presets: {presets} (variant default)\n"
+              f"        reads:   {entry.reads}\n"
+              f"        built by {builder_name(entry)}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m plls_bench.report", description=__doc__.split("\n\n")[1],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", default="results/runs", help="root of the run directories (read only)")
+    parser.add_argument("--out", default="results", help="where tables/, figures/, index.json and README.md go")
+    parser.add_argument("--only", nargs="+", metavar="ID", help="regenerate only these ids (see --list)")
+    parser.add_argument("--list", action="store_true", help="print the registry and exit")
+    parser.add_argument("--x-axis", default=DEFAULT_X_AXIS, choices=X_AXES, help="x axis of the return curves")
+    parser.add_argument("--paper", default=str(PAPER_DIR), help="folder of the paper's numbers (*.csv)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    if args.list:
+        print_registry()
+        return 0
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    command = shlex.join(["python", "-m", "plls_bench.report", *(sys.argv[1:] if argv is None else argv)])
+    try:
+        statuses = render_all(args.runs, args.out, args.only, args.x_axis, args.paper,
+                              progress=not args.no_progress, command=command)
+    except ReportError as err:
+        print(f"plls_bench.report: {err}", file=sys.stderr)
+        return 2
+    for status in statuses.values():
+        shown = ", ".join(f"{k}: {v}" for k, v in status.trials.items())
+        print(f"{status.id:7s} {status.status:8s} {len(status.gaps):3d} gap(s)  {shown}")
+        if status.error:
+            print(f"        error: {status.error}")
+    print(f"wrote {args.out}/README.md")
+    return 1 if any(s.status == "error" for s in statuses.values()) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

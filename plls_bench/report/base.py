@@ -1,0 +1,65 @@
+"""The types every part of the collector shares: a registry entry, its sources, the options a
+build receives, and what a build returns."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from plls_bench.report.load import Runs
+    from plls_bench.report.tables import Table
+
+PLLS_RED, BASE_BLUE, VS_GREEN = "#d62728", "#1f77b4", "#2ca02c"  # the paper's Fig. 20 colours
+
+
+@dataclass(frozen=True)
+class Source:
+    """An experiment preset (variant ``default``) feeding an entry, and how it is labelled."""
+
+    experiment: str
+    label: str
+    color: str = PLLS_RED
+
+
+@dataclass(frozen=True)
+class Options:
+    x_axis: str
+    paper_dir: Path
+
+
+@dataclass
+class Output:
+    """What a build produced. ``data`` is the tidy (long) table of what was drawn; ``trials``
+    maps each series to the number of trials (or runs) it shows."""
+
+    figure: "Figure | None" = None
+    data: "pd.DataFrame | None" = None
+    table: "Table | None" = None
+    trials: dict[str, int] = field(default_factory=dict)
+    empty: bool = False
+
+
+Build = Callable[["Runs", "Entry", Options], Output]
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One table or figure of the paper (or one the suite adds): where it comes from, how it is
+    drawn. ``size`` is the figure size in inches (pixels = inches x DPI)."""
+
+    id: str
+    ref: str
+    title: str
+    sources: tuple[Source, ...]
+    build: Build
+    reads: str
+    kind: str = "figure"
+    size: tuple[float, float] = (7.0, 4.5)
+
+    @property
+    def experiments(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(s.experiment for s in self.sources))

@@ -1,0 +1,273 @@
+"""What the paper lacks: statistics for every return comparison (IQM and mean with 95% CIs,
+probability of improvement) and the "paper vs suite" table of every quantitative claim.
+
+Each claim in ``results/paper/claims.csv`` names a ``kind`` (how the suite measures it, one
+function below), a ``rule`` and ``threshold`` (what counts as reproducing it) and the least
+``min_budget`` and x range (``needs_x``) at which it can be judged. The verdict reads the suite's
+95% CI: entirely on the claim's side -> reproduced, entirely on the other -> not reproduced,
+straddling -> inconclusive; below the budget or range -> not run at this budget.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from plls_bench.config import BUDGET_NAMES
+from plls_bench.report.base import Entry, Options, Output
+from plls_bench.report.efficiency import fmt_convergence, parameter_counts
+from plls_bench.report.load import Runs
+from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_curves, scores
+from plls_bench.report.stats import (CURVE_RESAMPLES, ahead_from, bootstrap_ci, complete,
+                                     probability_of_improvement, summarise)
+from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
+
+BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
+NAN2 = (math.nan, math.nan)
+
+
+class NotJudged(Exception):
+    """The runs cannot judge this claim (no data, too small a budget); the message says why."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    value: float
+    ci: tuple[float, float]
+    text: str      # the suite's value as shown
+    budget: str    # budgets and trial counts behind it
+    reach: float = math.inf  # furthest x the runs reached on the claim's axis
+
+
+# --------------------------------------------------------------------------- measurements
+def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:
+    curves = load_curves(runs, runs.experiment(name), name, claim["x_axis"] or DEFAULT_X_AXIS)
+    if not curves.n:
+        raise NotJudged(f"no evaluations of {name}")
+    return curves
+
+
+def _budget(runs: Runs, *names: str, n: list[int] | None = None) -> str:
+    exps = [runs.experiment(name) for name in names]
+    counts = n or [len(e.trials) for e in exps]
+    word = "trial" if counts == [1] else "trials"
+    return f"{'/'.join(sorted({e.budget or NA for e in exps}))} ({' + '.join(map(str, counts))} {word})"
+
+
+def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """Mean test MSE over distinct trained models (trials sharing an artifact count once)."""
+    exp, model = runs.experiment(claim["experiment"]), claim["param"]
+    values: dict[str, float] = {}
+    for trial in exp.trials:
+        entry = (runs.json(exp, trial, "metrics/repr_test.json") or {}).get(model)
+        if isinstance(entry, dict) and isinstance(entry.get("test_mse"), (int, float)):
+            values.setdefault(str(entry.get("artifact", trial.seed)), float(entry["test_mse"]))
+    if not values:
+        raise NotJudged(f"no test MSE of model {model} in {exp.name}")
+    s = summarise(np.array(list(values.values())))
+    text = f"{fmt(s.mean)} ± {fmt(s.std)} ({s.n} model{'s' if s.n > 1 else ''})"
+    if not math.isnan(s.mean_ci[0]):
+        text += f", CI [{fmt(s.mean_ci[0])}, {fmt(s.mean_ci[1])}]"
+    return Estimate(s.mean, s.mean_ci, text, _budget(runs, exp.name))
+
+
+def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
+    params = parameter_counts(runs, runs.experiment(claim["experiment"]))
+    if params is None:
+        raise NotJudged(f"no metrics/params.json in {claim['experiment']}")
+    value = float(params[claim["param"]])
+    return Estimate(value, NAN2, fmt(value), _budget(runs, claim["experiment"]))
+
+
+def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
+    exp = runs.experiment(claim["experiment"])
+    trial = runs.first_with(exp, "filmstrip/filmstrip.json")
+    steps = (runs.json(exp, trial, "filmstrip/filmstrip.json") or {}).get("steps_to_goal") if trial else None
+    if trial is None:
+        raise NotJudged(f"no filmstrip in {exp.name}")
+    value = math.inf if not isinstance(steps, (int, float)) else float(steps)
+    text = "goal not reached" if math.isinf(value) else f"{fmt(value)} steps (seed {trial.seed})"
+    return Estimate(value, NAN2, text, _budget(runs, exp.name, n=[1]))
+
+
+def convergence_point(runs: Runs, claim: dict[str, str]) -> Estimate:
+    result = convergence(_curves(runs, claim["experiment"], claim))
+    if result is None:
+        raise NotJudged(f"no complete curves of {claim['experiment']}")
+    return Estimate(result.x, result.ci, fmt_convergence(result), _budget(runs, claim["experiment"], n=[result.n]),
+                    reach=result.last_x)
+
+
+def _pair(runs: Runs, claim: dict[str, str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Both methods' finished trials on the evaluations they all reach: grid, A, B."""
+    a, b = _curves(runs, claim["experiment"], claim), _curves(runs, claim["baseline"], claim)
+    grid = np.intersect1d(a.grid, b.grid)
+    mats = [c.values[c.complete_seeds()][:, np.searchsorted(c.grid, grid)] for c in (a, b)]
+    grid, mats = complete(grid, *mats)
+    if not len(grid) or min(len(m) for m in mats) < 2:
+        raise NotJudged("needs at least 2 finished trials of each method on common evaluations")
+    return grid, mats[0], mats[1]
+
+
+def _pair_budget(runs: Runs, claim: dict[str, str], a: np.ndarray, b: np.ndarray) -> str:
+    return _budget(runs, claim["experiment"], claim["baseline"], n=[len(a), len(b)])
+
+
+def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """x from which A's mean return stays above B's; inf if A is not ahead at the end."""
+    grid, a, b = _pair(runs, claim)
+
+    def stat(x: np.ndarray, y: np.ndarray) -> float:
+        index = ahead_from(x.mean(axis=0), y.mean(axis=0))
+        return math.inf if index is None else float(grid[index])
+
+    value = stat(a, b)
+    ci = bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False)
+    text = "not ahead at the end" if math.isinf(value) else f"ahead from {fmt(value)}"
+    return Estimate(value, (float(ci[0]), float(ci[1])), text + _ci_text(ci), _pair_budget(runs, claim, a, b),
+                    reach=float(grid[-1]))
+
+
+def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """Mean over evaluations with x >= ``from_x`` of std(B) - std(A) across trials."""
+    grid, a, b = _pair(runs, claim)
+    keep = grid >= float(claim["from_x"] or 0)
+    if not keep.any():
+        raise NotJudged(f"no evaluations at or after {claim['from_x']}")
+
+    def stat(x: np.ndarray, y: np.ndarray) -> float:
+        return float(np.mean(y[:, keep].std(axis=0, ddof=1) - x[:, keep].std(axis=0, ddof=1)))
+
+    value = stat(a, b)
+    low, high = (float(v) for v in bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False))
+    return Estimate(value, (low, high), fmt_ci(value, (low, high)), _pair_budget(runs, claim, a, b),
+                    reach=float(grid[-1]))
+
+
+def p_improvement(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """P(A > B) over trials' ``final`` returns or ``auc`` (mean return over the curve)."""
+    a, b = (scores(runs, _curves(runs, name, claim)) for name in (claim["experiment"], claim["baseline"]))
+    x, y = getattr(a, claim["param"]), getattr(b, claim["param"])
+    if not len(x) or not len(y):
+        raise NotJudged("no finished trials to compare")
+    value, ci = probability_of_improvement(x, y)
+    text = f"{fmt_ci(value, ci, 3)} ({claim['param']}: {fmt(float(np.mean(x)))} vs {fmt(float(np.mean(y)))})"
+    return Estimate(value, ci, text, _budget(runs, claim["experiment"], claim["baseline"], n=[len(x), len(y)]),
+                    reach=min(a.last_x, b.last_x))
+
+
+def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
+    low, high = float(ci[0]), float(ci[1])
+    return "" if math.isnan(low) else f" [{fmt(low)}, {'never' if math.isinf(high) else fmt(high)}]"
+
+
+KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
+    "repr_mse": repr_mse, "param_count": param_count, "steps_to_goal": steps_to_goal,
+    "convergence": convergence_point, "ahead_from": ahead_point, "std_gap": std_gap,
+    "p_improvement": p_improvement,
+}
+RULES = ("at_most", "at_least", "greater_than", "equal", "between")
+
+
+# --------------------------------------------------------------------------- verdicts
+REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduced", "inconclusive",
+                                                     "not run at this budget")
+
+
+def verdict(rule: str, low: float, high: float, threshold: float, threshold_high: float = math.nan) -> str:
+    """Judge the interval [low, high] (the CI, or the point twice) against the claim's rule."""
+    if rule == "equal":
+        return REPRODUCED if low == high == threshold else NOT_REPRODUCED
+    on_side, off_side = {
+        "at_most": (high <= threshold, low > threshold),
+        "at_least": (low >= threshold, high < threshold),
+        "greater_than": (low > threshold, high <= threshold),
+        "between": (low >= threshold and high <= threshold_high, high < threshold or low > threshold_high),
+    }[rule]
+    return REPRODUCED if on_side else NOT_REPRODUCED if off_side else INCONCLUSIVE
+
+
+def _rule_text(claim: dict[str, str]) -> str:
+    words = {"at_most": "≤", "at_least": "≥", "greater_than": ">", "equal": "=", "between": "in"}
+    if claim["rule"] == "between":
+        return f"in [{claim['threshold']}, {claim['threshold_high']}]"
+    return f"{words[claim['rule']]} {claim['threshold']}"
+
+
+def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str]:
+    """(estimate, verdict, reason) for one claim row."""
+    names = [n for n in (claim["experiment"], claim["baseline"]) if n]
+    for name in names:
+        budget = runs.experiment(name).budget
+        if budget is None:
+            return None, NOT_RUN, f"no runs of {name}"
+        if BUDGET_ORDER.index(budget) < BUDGET_ORDER.index(claim["min_budget"]):
+            return None, NOT_RUN, f"{name} ran at budget {budget}; judged from budget {claim['min_budget']} up"
+    try:
+        est = KINDS[claim["kind"]](runs, claim)
+    except NotJudged as err:
+        return None, NOT_RUN, str(err)
+    if claim["needs_x"] and est.reach < float(claim["needs_x"]):
+        axis = claim["x_axis"] or DEFAULT_X_AXIS
+        return est, NOT_RUN, f"runs reach {axis} {fmt(est.reach)} < {fmt(float(claim['needs_x']))}"
+    low, high = est.ci if not math.isnan(est.ci[0]) else (est.value, est.value)
+    high_t = float(claim["threshold_high"]) if claim["threshold_high"] else math.nan
+    if not math.isnan(est.ci[0]):
+        basis = " (95% CI)"
+    else:  # a count is exact; anything else from one trial or model has no interval
+        basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
+    reason = f"suite value {_rule_text(claim)}{basis}"
+    return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def read_claims(paper_dir: Path) -> list[dict[str, str]]:
+    """``claims.csv``, checked so that a typo fails loudly naming the row."""
+    rows = read_paper(paper_dir, "claims")
+    for line, row in enumerate(rows, 2):
+        allowed = {"kind": tuple(KINDS), "rule": RULES, "min_budget": BUDGET_ORDER}
+        problems = [f"{key} {row[key]!r}" for key, values in allowed.items() if row[key] not in values]
+        numbers = ("threshold", "threshold_high", "paper_value", "paper_pm", "from_x", "needs_x")
+        problems += [f"{key} {row[key]!r} (not a number)" for key in numbers
+                     if (row[key] or key == "threshold") and not _is_number(row[key])]
+        if problems:
+            raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
+    return rows
+
+
+def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
+    """The "paper vs suite" table: every claim of ``claims.csv`` with the suite's value and verdict."""
+    rows, records = [], []
+    for claim in read_claims(opts.paper_dir):
+        est, outcome, reason = judge(runs, claim)
+        rows.append([claim["claim"], claim["paper"], est.text if est else NA, est.budget if est else NA,
+                     outcome, reason, claim["source"]])
+        records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],
+                        "paper": claim["paper"], "paper_value": claim["paper_value"],
+                        "paper_pm": claim["paper_pm"], "suite_value": est.value if est else None,
+                        "ci_low": est.ci[0] if est else None, "ci_high": est.ci[1] if est else None,
+                        "suite": est.text if est else None, "budget": est.budget if est else None,
+                        "verdict": outcome, "reason": reason, "rule": claim["rule"],
+                        "threshold": claim["threshold"], "source": claim["source"]})
+    counts = pd.Series([r["verdict"] for r in records]).value_counts()
+    summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN))
+    caption = (f"{len(records)} claims: {summary}. A verdict reads the suite's 95% bootstrap CI (percentile, "
+               "fixed seed): entirely on the claim's side of its threshold = reproduced, entirely on the other "
+               "side = not reproduced, across it = inconclusive; claims need the budget and x range named in "
+               "results/paper/claims.csv. Probabilities of improvement follow rliable (Agarwal et al., 2021).")
+    table = Table(f"{entry.ref}. {entry.title}", caption,
+                  ["Claim", "Paper", "Suite [95% CI]", "Budget (trials)", "Verdict", "Rule", "Source"],
+                  rows, pd.DataFrame(records))
+    judged = sum(r["suite_value"] is not None for r in records)
+    return Output(table=table, trials={"claims with a suite value": judged}, empty=judged == 0)

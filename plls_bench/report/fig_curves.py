@@ -1,0 +1,101 @@
+"""Curve figures: average return over trials (Figs 10, 18, 20, 21) and representation training
+losses, train vs validation (Figs 6, 13, 15). Mean line, +- one standard deviation shaded, as in
+the paper; the tidy data beside each figure also carry the 95% bootstrap CI of the mean."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from plls_bench.report.base import BASE_BLUE, PLLS_RED, Entry, Options, Output
+from plls_bench.report.load import Runs
+from plls_bench.report.plot import empty_output, new_figure, suptitle
+from plls_bench.report.returns import load_curves, x_label
+from plls_bench.report.stats import align, band
+from plls_bench.report.tables import plural
+
+
+def _band_frame(series: str, experiment: str, x_name: str, grid: np.ndarray, values: np.ndarray) -> pd.DataFrame:
+    stats = band(values)
+    return pd.DataFrame({"series": series, "experiment": experiment, "x_axis": x_name, "x": grid, **stats})
+
+
+def _draw_band(ax, frame: pd.DataFrame, color: str, label: str) -> None:
+    ax.plot(frame["x"], frame["mean"], color=color, lw=1.6, label=label)
+    ax.fill_between(frame["x"], frame["mean"] - frame["std"], frame["mean"] + frame["std"],
+                    color=color, alpha=0.2, lw=0)
+
+
+def _budgets(runs: Runs, entry: Entry) -> str:
+    names = sorted({b for s in entry.sources if (b := runs.experiment(s.experiment).budget)})
+    return f"budget {'/'.join(names)}" if names else "no runs"
+
+
+def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
+    """Mean return over trials against ``opts.x_axis``, one series per source."""
+    methods = [(s, load_curves(runs, runs.experiment(s.experiment), s.label, opts.x_axis)) for s in entry.sources]
+    trials = {s.label: c.n for s, c in methods}
+    title = f"{entry.title} ({_budgets(runs, entry)})"
+    if not any(c.n for _, c in methods):
+        return empty_output(runs, entry, title)
+    fig = new_figure(entry.size)
+    ax = fig.add_subplot()
+    frames = []
+    for source, curves in methods:
+        if curves.n:
+            frame = _band_frame(source.label, source.experiment, opts.x_axis, curves.grid, curves.values)
+            early = int((~curves.complete_seeds()).sum())
+            note = f", {early} stop early" if early else ""
+            _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{note})")
+            frames.append(frame)
+    first = next(c for _, c in methods if c.n)
+    ax.set_xlabel(x_label(first.experiment, opts.x_axis))
+    ax.set_ylabel("average return")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    suptitle(fig, entry.ref, title, trials)
+    return Output(fig, pd.concat(frames, ignore_index=True), trials=trials)
+
+
+# --------------------------------------------------------------------------- losses
+def loss_curves(runs: Runs, entry: Entry, opts: Options, *, model: str, metric: str) -> Output:
+    """``train_<metric>`` (blue) and ``val_<metric>`` (red) per epoch of the ``model``
+    (``state``/``action``) rows of ``metrics/repr_train.jsonl``. Trials sharing one trained
+    representation log identical curves; each distinct model counts once."""
+    source = entry.sources[0]
+    exp = runs.experiment(source.experiment)
+    distinct: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    for trial in exp.trials:
+        rows = sorted((r for r in runs.records(exp, trial, "repr_train")
+                       if r.get("model") == model and isinstance(r.get("epoch"), int)), key=lambda r: r["epoch"])
+        if not rows:
+            runs.gap(exp, trial, f"metrics/repr_train.jsonl: no rows for model={model}")
+            continue
+        curve = tuple(np.array([_value(r, f"{split}_{metric}") for r in rows]) for split in ("train", "val"))
+        epochs = np.array([r["epoch"] for r in rows], dtype=float)
+        distinct.setdefault((epochs.tobytes(), curve[0].tobytes(), curve[1].tobytes()), (epochs, *curve))
+    title = f"{entry.title} ({_budgets(runs, entry)}, {plural(len(exp.trials), 'run')})"
+    trials = {source.label: len(distinct)}
+    if not distinct:
+        return empty_output(runs, entry, title)
+    fig = new_figure(entry.size)
+    ax = fig.add_subplot()
+    frames = []
+    for split, color, name in ((1, BASE_BLUE, "train"), (2, PLLS_RED, "validation")):
+        grid, values = align([(c[0], c[split]) for c in distinct.values()])
+        frame = _band_frame(name, source.experiment, "epoch", grid, values)
+        _draw_band(ax, frame, color, name)
+        frames.append(frame)
+    data = pd.concat(frames, ignore_index=True)
+    if (data["mean"] > 0).all() and data["mean"].max() / data["mean"].min() > 100:
+        ax.set_yscale("log")  # MSEs falling over decades: a linear axis would hide the tail
+    ax.set_xlabel("epoch")
+    ax.set_ylabel({"recon_mse": "reconstruction loss (MSE)", "loss": "loss (negative ELBO)"}.get(metric, metric))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    suptitle(fig, entry.ref, title, trials, unit="trained model")
+    return Output(fig, data, trials=trials)
+
+
+def _value(row: dict, key: str) -> float:
+    value = row.get(key)
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else np.nan

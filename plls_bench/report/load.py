@@ -1,0 +1,242 @@
+"""Read run directories for the collector, tolerant of every gap, and never write to them.
+
+Each registry id gets a fresh :class:`Runs` view; everything it could not read (a missing run or
+seed, a torn jsonl line, a failed or unfinished run, a corrupt file) is recorded as a :class:`Gap`
+in that view, so the id reports exactly the gaps that touch it. Only the files listed in the
+README's "What each runner writes" table are read.
+"""
+from __future__ import annotations
+
+import re
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from plls_bench.runs import HASH_EXCLUDED_KEYS, STATUS_DONE, read_json, scan_jsonl, stable_hash
+
+DEFAULT_VARIANT = "default"
+_SEED_DIR = re.compile(r"^seed=(\d+)$")
+
+
+@dataclass(frozen=True)
+class Gap:
+    """Something the collector expected and could not use; ``seed`` is None for a whole run."""
+
+    experiment: str
+    variant: str
+    seed: int | None
+    problem: str
+
+    def __str__(self) -> str:
+        where = f"{self.experiment}/{self.variant}" + ("" if self.seed is None else f" seed={self.seed}")
+        return f"{where}: {self.problem}"
+
+
+@dataclass
+class Trial:
+    """One usable run directory (it has a readable config.json)."""
+
+    seed: int
+    path: Path
+    state: str  # done | running | failed | unknown (no readable status.json)
+    config: dict[str, Any]
+
+    def cfg(self, dotted: str, default: Any = None) -> Any:
+        """A value of the run's resolved config by dotted key, e.g. ``algo.ppo.n_envs``."""
+        node: Any = self.config
+        for part in dotted.split("."):
+            if not isinstance(node, dict) or part not in node:
+                return default
+            node = node[part]
+        return node
+
+
+@dataclass
+class Experiment:
+    """The trials of one ``<experiment>/<variant>`` that share one config (seed aside)."""
+
+    name: str
+    variant: str
+    trials: list[Trial] = field(default_factory=list)
+
+    @property
+    def budget(self) -> str | None:
+        return self.trials[0].cfg("budget.name") if self.trials else None
+
+    @property
+    def budget_text(self) -> str:
+        return f"budget {self.budget}" if self.budget else "no runs"
+
+    def cfg(self, dotted: str, default: Any = None) -> Any:
+        return self.trials[0].cfg(dotted, default) if self.trials else default
+
+
+class Runs:
+    """A read-only view of a runs dir that records every gap it meets."""
+
+    def __init__(self, runs_dir: str | Path) -> None:
+        self.root = Path(runs_dir)
+        self.gaps: list[Gap] = []
+        self._experiments: dict[tuple[str, str], Experiment] = {}
+
+    # gaps -------------------------------------------------------------------
+    def gap(self, exp: Experiment, trial: Trial | None, problem: str) -> None:
+        item = Gap(exp.name, exp.variant, None if trial is None else trial.seed, problem)
+        if item not in self.gaps:
+            self.gaps.append(item)
+
+    # experiments --------------------------------------------------------------
+    def experiment(self, name: str, variant: str = DEFAULT_VARIANT) -> Experiment:
+        """The consistent trials of ``name/variant``; gaps for missing, empty or odd run dirs."""
+        key = (name, variant)
+        if key not in self._experiments:
+            self._experiments[key] = self._scan(name, variant)
+        return self._experiments[key]
+
+    def _scan(self, name: str, variant: str) -> Experiment:
+        exp = Experiment(name, variant)
+        root = self.root / name / variant
+        if not root.is_dir():
+            self.gap(exp, None, f"no runs (expected {root})")
+            return exp
+        candidates, seen = [], set()
+        for path in sorted(root.iterdir(), key=_seed_order):
+            match = _SEED_DIR.match(path.name)
+            if not path.is_dir() or not match:
+                self.gap(exp, None, f"{path.name}: not a seed=<k> run dir, ignored")
+                continue
+            seen.add(int(match.group(1)))
+            trial = self._trial(exp, int(match.group(1)), path)
+            if trial is not None:
+                candidates.append(trial)
+        exp.trials = self._consistent(exp, candidates)
+        self._missing_seeds(exp, seen)
+        return exp
+
+    def _trial(self, exp: Experiment, seed: int, path: Path) -> Trial | None:
+        probe = Trial(seed, path, "unknown", {})
+        if not any(path.iterdir()):
+            self.gap(exp, probe, "empty run dir")
+            return None
+        config = read_json(path / "config.json")
+        if not isinstance(config, dict) or not isinstance(config.get("config"), dict):
+            self.gap(exp, probe, "config.json missing or unreadable: run excluded")
+            return None
+        status = read_json(path / "status.json")
+        state = status.get("state", "unknown") if isinstance(status, dict) else "unknown"
+        trial = Trial(seed, path, state, config["config"])
+        if status is None:
+            self.gap(exp, trial, "status.json missing or unreadable: state unknown, data used as is")
+        elif state != STATUS_DONE:
+            error = f" ({status.get('error')})" if status.get("error") else ""
+            self.gap(exp, trial, f"status {state}{error}: data used as far as they go")
+        return trial
+
+    def _consistent(self, exp: Experiment, trials: list[Trial]) -> list[Trial]:
+        """Keep the largest group of trials whose configs agree apart from the seed."""
+        groups: dict[str, list[Trial]] = {}
+        for trial in trials:
+            groups.setdefault(_identity(trial.config), []).append(trial)
+        if len(groups) <= 1:
+            return trials
+        keep = max(groups.values(), key=lambda g: (len(g), -g[0].seed))
+        for group in groups.values():
+            if group is not keep:
+                for trial in group:
+                    diff = ", ".join(_diff(keep[0].config, trial.config)[:3])
+                    self.gap(exp, trial, f"config differs from seed={keep[0].seed}'s ({diff}): excluded")
+        return keep
+
+    def _missing_seeds(self, exp: Experiment, seen: set[int]) -> None:
+        expected = exp.cfg("budget.trials")
+        if isinstance(expected, int):
+            missing = [k for k in range(expected) if k not in seen]
+            if missing:
+                self.gap(exp, None, f"seed(s) {', '.join(map(str, missing))} missing "
+                                    f"(budget.trials={expected})")
+
+    # files --------------------------------------------------------------------
+    def records(self, exp: Experiment, trial: Trial, stream: str) -> list[dict[str, Any]]:
+        """The complete records of ``metrics/<stream>.jsonl``; torn or corrupt lines are gaps."""
+        scan = scan_jsonl(trial.path / "metrics" / f"{stream}.jsonl")
+        if scan is None:
+            self.gap(exp, trial, f"metrics/{stream}.jsonl missing")
+            return []
+        records = [r for r in scan.records if isinstance(r, dict)]
+        bad = len(scan.corrupt_lines) + len(scan.records) - len(records)
+        if bad:
+            self.gap(exp, trial, f"metrics/{stream}.jsonl: {bad} corrupt line(s) skipped")
+        if scan.torn_tail:
+            self.gap(exp, trial, f"metrics/{stream}.jsonl: truncated last line skipped")
+        return records
+
+    def json(self, exp: Experiment, trial: Trial, relpath: str) -> dict[str, Any] | None:
+        obj = read_json(trial.path / relpath)
+        if not isinstance(obj, dict):
+            self.gap(exp, trial, f"{relpath} missing or unreadable")
+            return None
+        return obj
+
+    def arrays(self, exp: Experiment, trial: Trial, relpath: str,
+               shapes: dict[str, tuple[int | None, ...]]) -> dict[str, np.ndarray] | None:
+        """The arrays ``shapes`` names from an npz, checked against the shapes (None = any size);
+        None (and a gap) when the file is missing, corrupt or not as the contract says."""
+        try:
+            with np.load(trial.path / relpath, allow_pickle=False) as npz:
+                data = {key: npz[key] for key in shapes if key in npz.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
+            self.gap(exp, trial, f"{relpath} missing or unreadable ({type(err).__name__})")
+            return None
+        problems = [f"{key} missing" for key in shapes if key not in data]
+        problems += [f"{key} has shape {data[key].shape}, expected {_shape_text(want)}"
+                     for key, want in shapes.items() if key in data and not _fits(data[key].shape, want)]
+        if problems:
+            self.gap(exp, trial, f"{relpath}: {'; '.join(problems)}")
+            return None
+        return data
+
+    def first_with(self, exp: Experiment, relpath: str) -> Trial | None:
+        """The lowest-seed trial holding ``relpath`` (single-run figures: filmstrips, studies)."""
+        for trial in exp.trials:
+            if (trial.path / relpath).is_file():
+                return trial
+        if exp.trials:
+            self.gap(exp, None, f"no trial has {relpath}")
+        return None
+
+
+def _seed_order(path: Path) -> tuple[int, str]:
+    """seed=2 before seed=10; odd names last."""
+    match = _SEED_DIR.match(path.name)
+    return (int(match.group(1)), "") if match else (1 << 62, path.name)
+
+
+def _identity(config: dict[str, Any]) -> str:
+    return stable_hash({k: v for k, v in config.items() if k not in (*HASH_EXCLUDED_KEYS, "seed")})
+
+
+def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
+    if not isinstance(node, dict):
+        return {prefix: node}
+    out: dict[str, Any] = {}
+    for key, value in node.items():
+        out.update(_flatten(value, f"{prefix}.{key}" if prefix else str(key)))
+    return out
+
+
+def _diff(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
+    fa, fb = _flatten(a), _flatten(b)
+    keys = [k for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)
+            and k.split(".")[0] not in (*HASH_EXCLUDED_KEYS, "seed")]
+    return [f"{k}: {fa.get(k)!r} vs {fb.get(k)!r}" for k in keys]
+
+
+def _fits(shape: tuple[int, ...], want: tuple[int | None, ...]) -> bool:
+    return len(shape) == len(want) and all(w is None or w == s for s, w in zip(shape, want))
+
+
+def _shape_text(want: tuple[int | None, ...]) -> str:
+    return "(" + ", ".join("k" if w is None else str(w) for w in want) + ")"

@@ -1,0 +1,93 @@
+"""The one registry: every table and figure id, the experiment presets (variant ``default``)
+that feed it, the run files it reads and the function that builds it. "Where does Fig 18 come
+from" is ``python -m plls_bench.report --list`` or one look below."""
+from __future__ import annotations
+
+from functools import partial
+
+from plls_bench.report import claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent
+from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
+
+S = Source
+EVAL = "metrics/eval.jsonl"
+MC_PLLS, MC_PPO = S("mountaincar_plls_ppo", "PL-LS + PPO"), S("mountaincar_ppo", "PPO", BASE_BLUE)
+CR_PLLS, CR_PPO = S("carracing_plls_ppo", "PL-LS + PPO"), S("carracing_ppo", "PPO", BASE_BLUE)
+CH_PLLS, CH_DBC = S("cheetah_plls_dbc", "PL-LS + DBC"), S("cheetah_dbc", "DBC", BASE_BLUE)
+
+FIG10 = Entry("fig10", "Fig. 10", "MountainCar, average return", (MC_PLLS, MC_PPO),
+              fig_curves.return_curves, EVAL)
+FIG18 = Entry("fig18", "Fig. 18", "CarRacing, average return", (CR_PLLS, CR_PPO),
+              fig_curves.return_curves, EVAL)
+CR_VS = S("carracing_ppo_vs", "PPO + V_s only", VS_GREEN)
+CR_VA = S("carracing_ppo_va", "PPO + V_a only", BASE_BLUE)
+FIG20 = Entry("fig20", "Fig. 20", "CarRacing ablation, average return", (CR_PLLS, CR_VS, CR_VA),
+              fig_curves.return_curves, EVAL)
+FIG21 = Entry("fig21", "Fig. 21", "Cheetah run, average return", (CH_PLLS, CH_DBC),
+              fig_curves.return_curves, EVAL)
+
+ENTRIES: tuple[Entry, ...] = (
+    Entry("table1", "Table 1", "Hyper-parameters of PL-LS with PPO on MountainCar", (MC_PLLS, MC_PPO),
+          partial(efficiency.hyperparameters, paper="table1"), "config.json", kind="table"),
+    Entry("table2", "Table 2", "Hyper-parameters of PL-LS with PPO on CarRacing", (CR_PLLS, CR_PPO),
+          partial(efficiency.hyperparameters, paper="table2"), "config.json", kind="table"),
+    Entry("table3", "Table 3", "Learning efficiency on CarRacing", (CR_PLLS, CR_PPO),
+          efficiency.learning_efficiency, f"metrics/params.json, {EVAL}", kind="table"),
+    Entry("fig06", "Fig. 6", "MountainCar V_a, reconstruction loss per epoch", (S("mountaincar_va", "V_a"),),
+          partial(fig_curves.loss_curves, model="action", metric="recon_mse"), "metrics/repr_train.jsonl"),
+    Entry("fig07", "Fig. 7", "MountainCar, multi-step exploration in V_a's latent space",
+          (S("mountaincar_multistep", "study"),), fig_latent.multistep,
+          "studies/multistep.npz, metrics/study.json", size=(9.0, 8.0)),
+    Entry("fig08", "Fig. 8", "MountainCar, one-step exploration in V_a's latent space",
+          (S("mountaincar_onestep", "study"),), fig_latent.onestep,
+          "studies/onestep.npz, metrics/study.json", size=(9.0, 8.0)),
+    Entry("fig09", "Fig. 9", "MountainCar, generalisation over actions and exploration over states",
+          (S("mountaincar_generalisation", "study"),), fig_latent.generalisation,
+          "studies/generalisation.npz, metrics/study.json", size=(13.0, 4.5)),
+    FIG10,
+    Entry("fig11", "Fig. 11", "MountainCar, the learned PL-LS + PPO policy", (MC_PLLS,), fig_images.filmstrip,
+          "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
+    Entry("fig12", "Fig. 12", "Structure of V_s", (S("carracing_vs", "V_s"),), fig_arch.architecture,
+          "metrics/architecture.json, metrics/params.json", size=(14.0, 5.0)),
+    Entry("fig13", "Fig. 13", "CarRacing V_s, training loss per epoch", (S("carracing_vs", "V_s"),),
+          partial(fig_curves.loss_curves, model="state", metric="loss"), "metrics/repr_train.jsonl"),
+    Entry("fig14", "Fig. 14", "CarRacing, V_s reconstructions", (S("carracing_vs", "V_s"),),
+          fig_images.state_reconstructions, "samples/state_reconstructions.npz", size=(12.0, 3.8)),
+    Entry("fig15", "Fig. 15", "CarRacing V_a, reconstruction loss per epoch", (S("carracing_va", "V_a"),),
+          partial(fig_curves.loss_curves, model="action", metric="recon_mse"), "metrics/repr_train.jsonl"),
+    Entry("fig16", "Fig. 16", "CarRacing, V_a's reconstructions of the first test actions",
+          (S("carracing_va", "V_a"),), fig_images.action_reconstructions,
+          "samples/action_reconstructions.npz", size=(9.0, 6.0)),
+    Entry("fig17", "Fig. 17", "Network structure of PL-LS + PPO and of plain PPO", (CR_PLLS, CR_PPO),
+          fig_arch.architecture, "metrics/architecture.json, metrics/params.json", size=(14.0, 8.0)),
+    FIG18,
+    Entry("fig19", "Fig. 19", "CarRacing, the learned PL-LS + PPO policy", (CR_PLLS,), fig_images.filmstrip,
+          "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
+    FIG20,
+    FIG21,
+    Entry("fig22", "Fig. 22", "Cheetah run, the learned PL-LS + DBC policy", (CH_PLLS,), fig_images.filmstrip,
+          "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
+    Entry("stats", "Return statistics", "IQM, mean and probability of improvement for every return comparison",
+          tuple(dict.fromkeys(s for e in (FIG10, FIG18, FIG20, FIG21) for s in e.sources)),
+          partial(comparisons.return_statistics, comparisons=(FIG10, FIG18, FIG20, FIG21)), EVAL, kind="table"),
+    Entry("claims", "Paper vs suite", "Every quantitative claim of the paper beside the suite's value",
+          (MC_PLLS, MC_PPO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC, S("mountaincar_va", "V_a"),
+           S("carracing_va", "V_a")),
+          claims.claims_table, "every file above; results/paper/claims.csv", kind="table"),
+)
+BY_ID = {entry.id: entry for entry in ENTRIES}
+assert len(BY_ID) == len(ENTRIES), "duplicate registry id"
+
+
+def builder_name(entry: Entry) -> str:
+    """``module:function`` of an entry's build, with a partial's keywords."""
+    build, keywords = entry.build, ""
+    if isinstance(build, partial):
+        keywords = "(" + ", ".join(f"{k}={_keyword(v)}" for k, v in build.keywords.items()) + ")"
+        build = build.func
+    return f"{build.__module__}:{build.__qualname__}{keywords}"
+
+
+def _keyword(value: object) -> str:
+    if isinstance(value, tuple):
+        return "(" + ", ".join(getattr(v, "id", repr(v)) for v in value) + ")"
+    return repr(value)

@@ -1,0 +1,157 @@
+"""Return curves from ``metrics/eval.jsonl``: per-trial curves on a chosen x axis, aligned across
+trials, and the per-trial scores (final return, mean over the curve) that statistics compare."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from plls_bench.report.load import Experiment, Runs, Trial
+from plls_bench.report.stats import CURVE_RESAMPLES, align, bootstrap_ci, complete, convergence_index
+
+X_AXES = ("iteration", "env_steps", "wall_s", "env_steps_per_env")
+DEFAULT_X_AXIS = "iteration"  # PAPER_SPEC: the paper-matching axis is PPO iterations
+
+
+@dataclass
+class Curves:
+    """One method's evaluation curves: ``values`` ``(n_trials, P)`` on ``grid`` ``(P,)``, NaN where
+    a trial has no evaluation (it stopped earlier, or its rows were lost)."""
+
+    label: str
+    experiment: Experiment
+    x_axis: str
+    seeds: list[int] = field(default_factory=list)
+    grid: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    values: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def n(self) -> int:
+        return len(self.seeds)
+
+    def complete_seeds(self) -> np.ndarray:
+        """Mask of the trials that reach this method's last grid point (finished curves)."""
+        return ~np.isnan(self.values[:, -1]) if self.n else np.zeros(0, dtype=bool)
+
+
+def x_label(exp: Experiment, x_axis: str) -> str:
+    """Axis label naming what one unit is for this experiment's algorithm."""
+    if x_axis == "iteration":
+        if exp.cfg("algo.name") == "ppo":
+            return f"PPO iteration ({exp.cfg('algo.ppo.n_envs')} envs x {exp.cfg('algo.ppo.n_steps')} steps)"
+        return "iteration (agent steps)" if exp.cfg("algo.name") == "dbc" else "iteration"
+    return {"env_steps": "environment steps (frames)", "wall_s": "wall-clock time (s)",
+            "env_steps_per_env": "environment steps per parallel env"}[x_axis]
+
+
+def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X_AXIS) -> Curves:
+    """Every trial of ``exp`` with at least one usable evaluation, on one grid."""
+    curves = Curves(label, exp, x_axis)
+    pairs = []
+    for trial in exp.trials:
+        x, y = _trial_curve(runs, exp, trial, x_axis)
+        if len(x):
+            curves.seeds.append(trial.seed)
+            pairs.append((x, y))
+    curves.grid, curves.values = align(pairs, interpolate=x_axis == "wall_s")
+    return curves
+
+
+def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str) -> tuple[np.ndarray, np.ndarray]:
+    points: dict[float, float] = {}
+    skipped = duplicated = 0
+    scale = _per_env_scale(trial) if x_axis == "env_steps_per_env" else 1.0
+    source_key = "env_steps" if x_axis == "env_steps_per_env" else x_axis
+    for row in runs.records(exp, trial, "eval"):
+        x, y = _number(row.get(source_key)), _row_return(row)
+        if x is None or y is None:
+            skipped += 1
+            continue
+        duplicated += (x / scale) in points
+        points[x / scale] = y
+    if skipped:
+        runs.gap(exp, trial, f"metrics/eval.jsonl: {skipped} row(s) without {source_key} or returns skipped")
+    if duplicated:
+        runs.gap(exp, trial, f"metrics/eval.jsonl: {duplicated} duplicate evaluation(s); last kept")
+    xs = np.array(sorted(points))
+    return xs, np.array([points[x] for x in xs])
+
+
+def _per_env_scale(trial: Trial) -> float:
+    return float(trial.cfg("algo.ppo.n_envs", 1)) if trial.cfg("algo.name") == "ppo" else 1.0
+
+
+def _row_return(row: dict) -> float | None:
+    """The evaluation's mean return: ``return_mean``, else the mean of ``episode_returns``."""
+    value = _number(row.get("return_mean"))
+    if value is not None:
+        return value
+    episodes = row.get("episode_returns")
+    if isinstance(episodes, list) and episodes and all(_number(v) is not None for v in episodes):
+        return float(np.mean(episodes))
+    return None
+
+
+def _number(value: object) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+# --------------------------------------------------------------------------- scores
+@dataclass(frozen=True)
+class Scores:
+    """Per-trial scores of one method: ``final`` (mean return at the last evaluation) and ``auc``
+    (mean return over all evaluations), over the trials that finished their curve."""
+
+    label: str
+    seeds: tuple[int, ...]
+    final: np.ndarray
+    auc: np.ndarray
+    last_x: float
+
+
+def scores(runs: Runs, curves: Curves) -> Scores:
+    """Scores of the trials reaching the method's last evaluation; shorter trials would be
+    judged earlier in training, so they are left out (and reported as a gap)."""
+    keep = curves.complete_seeds()
+    for seed, ok in zip(curves.seeds, keep):
+        if not ok:
+            trial = next(t for t in curves.experiment.trials if t.seed == seed)
+            runs.gap(curves.experiment, trial, "curve ends before the method's last evaluation: "
+                                               "left out of final-return statistics")
+    values = curves.values[keep]
+    last_x = float(curves.grid[-1]) if len(curves.grid) else math.nan
+    return Scores(curves.label, tuple(s for s, k in zip(curves.seeds, keep) if k),
+                  values[:, -1] if len(values) else np.zeros(0),
+                  np.nanmean(values, axis=1) if len(values) else np.zeros(0), last_x)
+
+
+# --------------------------------------------------------------------------- convergence
+@dataclass(frozen=True)
+class Convergence:
+    """Where the mean curve converged (Table 3's rule, :func:`stats.convergence_index`) on one
+    x axis, with its bootstrap CI over trials; ``inf`` = not converged within the budget."""
+
+    x: float
+    ci: tuple[float, float]
+    n: int
+    last_x: float
+
+
+def convergence(curves: Curves) -> Convergence | None:
+    """Convergence of the mean curve over the trials that reach the method's last evaluation
+    (as for :func:`scores`; a shorter trial cannot bend the tail). None without data."""
+    if not curves.n:
+        return None
+    grid, (values,) = complete(curves.grid, curves.values[curves.complete_seeds()])
+    if not len(grid):
+        return None
+
+    def at(matrix: np.ndarray) -> float:
+        index = convergence_index(matrix.mean(axis=0))
+        return math.inf if index is None else float(grid[index])
+
+    low, high = bootstrap_ci([values], at, n_resamples=CURVE_RESAMPLES, vectorized=False)
+    return Convergence(at(values), (float(low), float(high)), len(values), float(grid[-1]))

@@ -1,0 +1,194 @@
+"""Synthetic run directories for testing the results collector before the experiments exist.
+
+Every file follows the README's "What each runner writes" table and is written through
+:class:`plls_bench.runs.Run`; configs are composed from the shipped yaml (the group choices each
+registry preset stands for, at the given budget), never written by hand.
+"""
+from __future__ import annotations
+
+import dataclasses
+import io
+from functools import lru_cache
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from plls_bench.composition import compose
+from plls_bench.config import Config
+from plls_bench.report.registry import ENTRIES
+from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json, run_dir_path
+
+# The group choices of each registry preset (the presets themselves come with issues 3-6).
+PPO, DBC = ["algo=ppo", "runner=ppo"], ["env=cheetah", "algo=dbc", "runner=dbc"]
+PRESETS: dict[str, list[str]] = {
+    "mountaincar_ppo": ["env=mountaincar", *PPO, "algo.ppo.learning_rate=3e-4"],
+    "mountaincar_plls_ppo": ["env=mountaincar", *PPO, "repr/action=vae"],
+    "carracing_ppo": ["env=carracing", *PPO, "algo.ppo.features_extractor=paper_cnn"],
+    "carracing_plls_ppo": ["env=carracing", *PPO, "repr/state=vae", "repr/action=vae"],
+    "carracing_ppo_vs": ["env=carracing", *PPO, "repr/state=vae"],
+    "carracing_ppo_va": ["env=carracing", *PPO, "repr/action=vae"],
+    "cheetah_dbc": DBC,
+    "cheetah_plls_dbc": [*DBC, "repr/action=vae"],
+    "mountaincar_va": ["env=mountaincar", "runner=repr", "repr/action=vae"],
+    "carracing_vs": ["env=carracing", "runner=repr", "repr/state=vae"],
+    "carracing_va": ["env=carracing", "runner=repr", "repr/action=vae"],
+    **{f"mountaincar_{s}": ["env=mountaincar", "runner=study", "repr/action=vae"]
+       for s in ("multistep", "onestep", "generalisation")},
+}
+
+
+@lru_cache(maxsize=None)
+def _compose(experiment: str, budget: str, runs_dir: str) -> Config:
+    cfg = compose([*PRESETS[experiment], f"budget={budget}", f"runs_dir={runs_dir}", "progress=false"])
+    return dataclasses.replace(cfg, experiment=experiment)  # `experiment=` on a command line picks a preset
+
+
+def make_run(runs_dir: Path, experiment: str, seed: int, budget: str = "quick") -> tuple[Run, Config]:
+    """A prepared run dir (config.json, provenance.json, status running) for ``experiment``."""
+    cfg = dataclasses.replace(_compose(experiment, budget, str(runs_dir)), seed=seed)
+    run = Run(run_dir_path(runs_dir, experiment, "default", seed))
+    run.prepare(cfg, config_hash(cfg))
+    run.write_status("running", config_hash=config_hash(cfg))
+    return run, cfg
+
+
+def finish(run: Run, cfg: Config, state: str = STATUS_DONE) -> None:
+    error = {"error": "RuntimeError: boom"} if state == "failed" else {}
+    run.write_status(state, config_hash=config_hash(cfg), **error)
+
+
+def write_npz(run: Run, relpath: str, **arrays: np.ndarray) -> None:
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    run.write_bytes(relpath, buffer.getvalue())
+
+
+# --------------------------------------------------------------------------- metric files
+def write_eval(run: Run, cfg: Config, iterations: Sequence[int], returns: Sequence[Sequence[float]]) -> None:
+    """``metrics/eval.jsonl``: one row per evaluation with its episode returns (and train rows)."""
+    ppo = cfg.algo.name == "ppo"
+    per_iteration = cfg.algo.ppo.n_envs * cfg.algo.ppo.n_steps if ppo else cfg.env.action_repeat
+    for iteration, episodes in zip(iterations, returns):
+        env_steps = iteration * per_iteration
+        row = {"env_steps": env_steps, "iteration": iteration, "agent_steps": env_steps // cfg.env.action_repeat,
+               "wall_s": 1.5 * iteration, "episode_returns": list(map(float, episodes)),
+               "return_mean": float(np.mean(episodes)), "episode_lengths": [100] * len(episodes)}
+        if ppo:
+            row["episode_returns_stochastic"] = [float(r) - 1.0 for r in episodes]
+        run.log("eval", row)
+        run.log("train", {"env_steps": env_steps, "iteration": iteration, "wall_s": 1.5 * iteration,
+                          "loss/policy": 0.1, "loss/value": 1.0, "perf/sps": 1000.0})
+
+
+def write_repr(run: Run, model: str, epochs: int, test_mse: float, artifact: str, scale: float = 1.0) -> None:
+    """``repr_train.jsonl`` rows for ``model`` (losses falling with the epoch) and ``repr_test.json``."""
+    for epoch in range(1, epochs + 1):
+        mse = scale * (0.3 / epoch + test_mse)
+        run.log("repr_train", {"model": model, "epoch": epoch, "train_loss": mse + 0.01, "train_recon_mse": mse,
+                               "train_kl": 0.01, "val_loss": 1.1 * mse + 0.01, "val_recon_mse": 1.1 * mse,
+                               "val_kl": 0.01})
+    previous = read_json(run.path / "metrics" / "repr_test.json") or {}
+    run.write_json("metrics/repr_test.json", {**previous, model: {"test_mse": test_mse, "n_test": 100,
+                                                                  "artifact": artifact}})
+
+
+def write_params(run: Run, total: int, trainable: int) -> None:
+    run.write_json("metrics/params.json", {"total": total, "trainable": trainable, "modules": {
+        "policy": {"total": trainable, "trainable": trainable},
+        "frozen": {"total": total - trainable, "trainable": 0}}})
+
+
+def write_architecture(run: Run, trainable: bool) -> None:
+    def conv(name: str, shape: list[int], params: int) -> dict:
+        return {"name": name, "type": "Conv2d", "output_shape": shape, "params": params, "trainable": trainable}
+
+    relu = {"name": "relu", "type": "ReLU", "output_shape": [32, 47, 47], "params": 0, "trainable": trainable}
+    run.write_json("metrics/architecture.json", {
+        "encoder": [conv("conv1", [32, 47, 47], 1568), relu, conv("conv2", [64, 22, 22], 32832)],
+        "policy": [{"name": "fc", "type": "Linear", "output_shape": [32], "params": 1056, "trainable": True},
+                   {"name": "tanh", "type": "Tanh", "output_shape": [32], "params": 0, "trainable": True}]})
+
+
+def write_study(run: Run, study: str, rng: np.random.Generator) -> None:
+    """``studies/<study>.npz`` with the arrays issue 6 defines, and ``metrics/study.json``."""
+    if study == "generalisation":
+        actions = np.concatenate([-rng.uniform(0, 1, 5), rng.uniform(0, 1, 5)])
+        e = rng.normal(size=(10, 10, 3))
+        arrays = dict(actions=actions, mu=e.mean(axis=1), std=e.std(axis=1), e=e,
+                      decoded=actions[:, None] + 0.05 * rng.normal(size=(10, 10)),
+                      next_states=rng.normal(size=(10, 10, 2)) * 0.01, s0=np.array([-0.5233, 0.0]))
+    else:
+        actions = rng.uniform(-1, 1, 1000) if study == "multistep" else np.concatenate(
+            [-rng.uniform(0, 1, 500), rng.uniform(0, 1, 500)])
+        e = np.stack([actions, actions ** 2, np.sin(3 * actions)], axis=1)
+        arrays = dict(actions=actions, mu=e, e=e + 0.01 * rng.normal(size=e.shape), decoded=actions * 0.98)
+        if study == "multistep":
+            arrays.update(states_raw=np.cumsum(rng.normal(size=(1001, 2)), axis=0) * 0.01,
+                          states_decoded=np.cumsum(rng.normal(size=(1001, 2)), axis=0) * 0.01)
+        else:
+            arrays.update(next_states_raw=np.stack([-0.5233 + 0.001 * actions, 0.001 * actions], axis=1),
+                          next_states_decoded=np.stack([-0.5233 + 0.00098 * actions, 0.00098 * actions], axis=1),
+                          s0=np.array([-0.5233, 0.0]))
+    write_npz(run, f"studies/{study}.npz", **arrays)
+    run.write_json("metrics/study.json", {"reconstruction_mse": 0.0004, "n_actions": len(actions)})
+
+
+def write_filmstrip(run: Run, frames: int, interval: int, steps_to_goal: int | None,
+                    hw: tuple[int, int] = (40, 60)) -> None:
+    images = np.zeros((frames, *hw, 3), dtype=np.uint8)
+    images[..., 1] = np.linspace(0, 255, frames, dtype=np.uint8)[:, None, None]
+    write_npz(run, "filmstrip/frames.npz", frames=images)
+    run.write_json("filmstrip/filmstrip.json", {"interval": interval, "episode_return": 93.5,
+                                                "frame_steps": [i * interval for i in range(frames)],
+                                                "steps_to_goal": steps_to_goal})
+
+
+def write_samples(run: Run, rng: np.random.Generator) -> None:
+    """Fig 14's frames (one on the road, one on the grass) and Fig 16's first 200 test actions."""
+    frames = rng.integers(0, 255, size=(2, 3, 96, 96), dtype=np.uint8)
+    write_npz(run, "samples/state_reconstructions.npz", originals=frames, reconstructions=frames // 2 + 60,
+              labels=np.array(["road", "grass"]))
+    actions = rng.uniform(0, 1, size=(200, 3))
+    write_npz(run, "samples/action_reconstructions.npz", actions=actions, reconstructions=actions + 0.01)
+
+
+# --------------------------------------------------------------------------- a whole suite
+PLLS_FILMSTRIPS = {"mountaincar_plls_ppo": (18, 4, 70), "carracing_plls_ppo": (21, 48, None),
+                   "cheetah_plls_dbc": (25, 40, None)}  # frames, interval, steps to goal
+
+
+def fill(run: Run, cfg: Config, rng: np.random.Generator) -> None:
+    """Every file the run's runner writes, with plausible values."""
+    name = cfg.experiment
+    if cfg.runner in ("ppo", "dbc"):
+        iterations = list(range(0, 24, 2))
+        top = 90.0 if "plls" in name else 60.0
+        write_eval(run, cfg, iterations, [[top * (1 - np.exp(-i / 6)) + rng.normal(0, 5) for _ in range(3)]
+                                          for i in iterations])
+        write_params(run, 8802 if "plls" in name else 3_289_768, 4394 if "plls" in name else 1_644_878)
+        write_architecture(run, trainable="plls" not in name)
+        if name in PLLS_FILMSTRIPS and cfg.seed == 0:
+            write_filmstrip(run, *PLLS_FILMSTRIPS[name])
+    elif cfg.runner == "repr":
+        for model, kind in (("state", cfg.repr.state.kind), ("action", cfg.repr.action.kind)):
+            if kind == "vae":  # one representation shared by all trials, as in the paper's offline phase
+                write_repr(run, model, cfg.budget.repr_epochs, 0.012, artifact=f"{model}-shared")
+        write_samples(run, rng)
+        write_params(run, 4_000_000, 4_000_000)
+        write_architecture(run, trainable=True)
+    else:
+        write_study(run, name.split("_", 1)[1], rng)
+
+
+def build_all(runs_dir: Path, budget: str = "quick") -> list[Path]:
+    """Complete runs (every seed of the budget) of every preset the registry reads."""
+    rng = np.random.default_rng(0)
+    paths = []
+    for experiment in sorted({e for entry in ENTRIES for e in entry.experiments}):
+        for seed in range(_compose(experiment, budget, str(runs_dir)).budget.trials):
+            run, cfg = make_run(runs_dir, experiment, seed, budget)
+            fill(run, cfg, rng)
+            finish(run, cfg)
+            paths.append(run.path)
+    return paths

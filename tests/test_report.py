@@ -1,0 +1,310 @@
+"""The results collector on synthetic run directories: numbers checked against values computed by
+hand, broken inputs reported (never a crash, never a write under the runs dir), every registry id
+rendered, and the CLI."""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from plls_bench.report import BY_ID, ENTRIES, render_all
+from plls_bench.report.__main__ import main as report_main
+from plls_bench.report.base import Options
+from plls_bench.report.claims import verdict
+from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
+from plls_bench.report.load import Runs
+from plls_bench.report.plot import DPI
+from tests.conftest import REPO_ROOT
+from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_npz,
+                                  write_params, write_repr)
+
+ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
+PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9}
+PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)]}
+
+
+def build_hand_runs(runs_dir: Path, budget: str = "quick") -> None:
+    """CarRacing PL-LS and PPO with known curves and counts, V_a with known MSEs, a filmstrip."""
+    for experiment, curves, params in (("carracing_plls_ppo", PLLS_RETURNS, (8802, 4394)),
+                                       ("carracing_ppo", PPO_RETURNS, (3_289_768, 1_644_878))):
+        for seed, curve in curves.items():
+            run, cfg = make_run(runs_dir, experiment, seed, budget)
+            write_eval(run, cfg, ITERATIONS, [[r - 1, r + 1] for r in curve])  # episode mean = r
+            write_params(run, *params)
+            finish(run, cfg)
+    for seed, (mse, artifact) in enumerate([(0.010, "a"), (0.014, "b"), (0.010, "a")]):  # 2 distinct models
+        run, cfg = make_run(runs_dir, "mountaincar_va", seed, budget)
+        write_repr(run, "action", 3, mse, artifact)
+        finish(run, cfg)
+    run, cfg = make_run(runs_dir, "mountaincar_plls_ppo", 0, budget)
+    write_filmstrip(run, frames=18, interval=4, steps_to_goal=70)
+    finish(run, cfg)
+
+
+def tree_state(root: Path) -> dict[str, tuple]:
+    """Every path under ``root`` with its bytes' digest, size and mtime (files) or 'dir'."""
+    state = {}
+    for path in sorted(root.rglob("*")):
+        rel = str(path.relative_to(root))
+        if path.is_dir():
+            state[rel] = ("dir",)
+        else:
+            stat = path.stat()
+            state[rel] = (hashlib.sha256(path.read_bytes()).hexdigest(), stat.st_size, stat.st_mtime_ns)
+    return state
+
+
+@pytest.fixture(scope="module")
+def hand(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    root = tmp_path_factory.mktemp("hand")
+    build_hand_runs(root / "runs")
+    statuses = render_all(root / "runs", root / "out", only=["table3", "fig18", "claims"])
+    return root / "out", statuses
+
+
+def test_curves_on_every_x_axis(hand, tmp_path: Path) -> None:
+    runs = hand[0].parent / "runs"
+    for axis, per_iteration in (("env_steps", 16 * 1000), ("env_steps_per_env", 1000)):  # Table 2: 16 envs x 1000
+        render_all(runs, tmp_path / axis, only=["fig18"], x_axis=axis)
+        data = pd.read_csv(tmp_path / axis / "figures" / "fig18.csv")
+        assert sorted(set(data["x"])) == [i * per_iteration for i in ITERATIONS] and (data["x_axis"] == axis).all()
+    render_all(runs, tmp_path / "wall", only=["fig18"], x_axis="wall_s")  # evaluations at 1.5 s per iteration
+    data = pd.read_csv(tmp_path / "wall" / "figures" / "fig18.csv")
+    plls = data[data["series"] == "PL-LS + PPO"]
+    assert plls["x"].iloc[-1] == 33.0 and (plls["n"] == 2).all()
+    assert plls["mean"].iloc[-1] == 100.0
+    assert np.interp(3.0, plls["x"], plls["mean"]) == pytest.approx(50, abs=5)  # iteration 2
+
+
+def test_table3_numbers_match_hand_computation(hand) -> None:
+    out, statuses = hand
+    table = pd.read_csv(out / "tables" / "table3.csv").set_index("experiment")
+    plls, ppo = table.loc["carracing_plls_ppo"], table.loc["carracing_ppo"]
+    assert (plls["total_parameters"], plls["trainable_parameters"]) == (8802, 4394)
+    assert (ppo["total_parameters"], ppo["trainable_parameters"]) == (3_289_768, 1_644_878)
+    assert (plls["paper_total_parameters"], plls["paper_sampled_frequency"]) == (8710, 3750)
+    # Mean curve 0, 50, 90, 100, ...: smoothed (trailing 5) 88 at evaluation 5, 98 at 6 -> converged at
+    # evaluation 6 = iteration 12 = 12 x 16 envs x 1000 steps. Resampling the two trials: seed 0 alone
+    # converges at evaluation 6 too, seed 1 alone at 5 (iteration 10): CI [10, 12].
+    assert plls[["converged_iteration", "converged_iteration_ci_low", "converged_iteration_ci_high"]].tolist() == [
+        12, 10, 12]
+    assert plls["converged_env_steps"] == 192_000 and plls["converged_env_steps_ci_low"] == 160_000
+    assert plls["converged_env_steps_per_env"] == 12_000  # the paper's "iterations" (vector-env steps)
+    assert plls["converged_sampled_frequency"] == 12_000 / 16
+    assert plls["paper_iterations_to_convergence"] == "60000"
+    # PPO rises by 5 per evaluation to the end: never within 5% for 5 evaluations
+    assert math.isinf(ppo["converged_iteration"]) and math.isinf(ppo["converged_iteration_ci_low"])
+    assert "not converged by 22" in (out / "tables" / "table3.md").read_text()
+    assert statuses["table3"].status == "ok"
+
+
+def test_figure_data_mean_std_and_ci_match_hand_computation(hand) -> None:
+    out, _ = hand
+    data = pd.read_csv(out / "figures" / "fig18.csv")
+    plls = data[data["series"] == "PL-LS + PPO"].set_index("x")
+    ppo = data[data["series"] == "PPO"].set_index("x")
+    # iteration 2: PL-LS trials returned 20 and 80. Two trials' bootstrap CI is exactly their range.
+    assert plls.loc[2.0, ["n", "mean", "ci_low", "ci_high"]].tolist() == [2, 50, 20, 80]
+    assert plls.loc[2.0, "std"] == pytest.approx(60 / math.sqrt(2))
+    assert plls.loc[0.0, ["mean", "std", "ci_low", "ci_high"]].tolist() == [0, 0, 0, 0]
+    assert ppo.loc[4.0, ["mean", "ci_low", "ci_high"]].tolist() == [15, 10, 20]
+    assert len(plls) == len(ppo) == 12 and (data["x_axis"] == "iteration").all()
+
+
+def claim(out: Path, text: str) -> pd.Series:
+    claims = pd.read_csv(out / "tables" / "claims.csv")
+    return claims[claims["claim"].str.startswith(text)].iloc[0]
+
+
+def test_claims_table_matches_hand_computation(hand) -> None:
+    out, _ = hand
+    assert claim(out, "PL-LS with PPO: total parameters")["verdict"] == "not reproduced"  # 8802 vs 8710
+    assert claim(out, "PPO: total parameters")["verdict"] == "reproduced"
+    converged = claim(out, "PL-LS with PPO converged by 60,000")  # in env steps per env, as Table 3
+    assert (converged["suite_value"], converged["ci_low"], converged["ci_high"]) == (12_000, 10_000, 12_000)
+    # measured, but the runs stop at 22 iterations x 1000 steps per env: the claim needs 60,000
+    assert converged["verdict"] == "not run at this budget" and "22,000 < 60,000" in converged["reason"]
+    assert math.isinf(claim(out, "PPO not converged by 120,000")["suite_value"])
+    beats = claim(out, "PL-LS with PPO beats PPO on CarRacing")
+    assert (beats["suite_value"], beats["ci_low"], beats["ci_high"], beats["verdict"]) == (1, 1, 1, "reproduced")
+    assert beats["budget"] == "quick (2 + 2 trials)"
+    # std over trials: PPO 10/sqrt(2) at every evaluation; PL-LS 60/sqrt(2) and 20/sqrt(2) at two of
+    # twelve. Each method's resample is either both seeds (those stds) or one seed twice (std 0).
+    variance = claim(out, "PPO has the larger variance")
+    ppo_std, plls_std = 10 / math.sqrt(2), (60 + 20) / math.sqrt(2) / 12
+    assert variance["suite_value"] == pytest.approx(ppo_std - plls_std)
+    assert (variance["ci_low"], variance["ci_high"]) == pytest.approx((-plls_std, ppo_std))
+    assert variance["verdict"] == "inconclusive"
+    mse = claim(out, "V_a test MSE on MountainCar")  # models a (0.010, two trials) and b (0.014)
+    assert (mse["suite_value"], mse["ci_low"], mse["ci_high"]) == pytest.approx((0.012, 0.010, 0.014))
+    assert mse["verdict"] == "reproduced" and "2 models" in mse["suite"]
+    assert claim(out, "Learned MountainCar policy")["verdict"] == "reproduced"  # 70 steps <= 85
+    assert claim(out, "PL-LS with DBC obtains")["verdict"] == "not run at this budget"
+
+
+@pytest.mark.parametrize(("rule", "low", "high", "expected"), [
+    ("at_most", 1, 2, "reproduced"), ("at_most", 3, 4, "not reproduced"), ("at_most", 1, 4, "inconclusive"),
+    ("at_least", 2, 4, "reproduced"), ("at_least", 0, 1, "not reproduced"), ("at_least", 1, 3, "inconclusive"),
+    ("greater_than", 2.5, 3, "reproduced"), ("greater_than", 1, 2, "not reproduced"),
+    ("greater_than", 2, 3, "inconclusive"), ("equal", 2, 2, "reproduced"), ("equal", 3, 3, "not reproduced"),
+    ("between", 2, 3, "reproduced"), ("between", 5, 6, "not reproduced"), ("between", 1, 3, "inconclusive"),
+    ("at_least", math.inf, math.inf, "reproduced"), ("at_most", 1, math.inf, "inconclusive")])
+def test_verdicts_read_the_interval_against_the_threshold(rule: str, low: float, high: float,
+                                                         expected: str) -> None:
+    assert verdict(rule, low, high, threshold=2.0, threshold_high=4.0) == expected
+
+
+def test_smoke_budget_claims_are_not_judged(tmp_path: Path) -> None:
+    build_hand_runs(tmp_path / "runs", budget="smoke")
+    render_all(tmp_path / "runs", tmp_path / "out", only=["claims"])
+    assert claim(tmp_path / "out", "PL-LS with PPO beats PPO on CarRacing")["verdict"] == "not run at this budget"
+    assert claim(tmp_path / "out", "PPO: total parameters")["verdict"] == "reproduced"  # counts: any budget
+
+
+def break_runs(runs: Path) -> None:
+    """Every kind of damage the collector must survive and report."""
+    (runs / "carracing_plls_ppo" / "default" / "seed=2").mkdir()  # an empty run dir
+    (runs / "carracing_plls_ppo" / "default" / "seed=1" / "status.json").unlink()
+    eval_path = runs / "carracing_ppo" / "default" / "seed=1" / "metrics" / "eval.jsonl"
+    text = eval_path.read_text()
+    eval_path.write_text(text[: len(text) - len(text.splitlines()[-1]) // 2 - 1])  # killed mid-line
+    run, cfg = make_run(runs, "cheetah_dbc", 0)  # seed 1 of 2 missing; this one failed after 3 evaluations
+    write_eval(run, cfg, [0, 1000, 2000], [[1.0], [2.0], [3.0]])
+    with open(run.metrics_path("eval"), "a") as handle:
+        handle.write("not json\n")
+    finish(run, cfg, "failed")
+    run, cfg = make_run(runs, "carracing_va", 0)
+    run.write_bytes("samples/action_reconstructions.npz", b"PK\x03\x04 not a zip")
+    finish(run, cfg)
+    run, cfg = make_run(runs, "carracing_vs", 0)  # no frame with the car on the grass
+    frames = np.zeros((1, 3, 96, 96), dtype=np.uint8)
+    write_npz(run, "samples/state_reconstructions.npz", originals=frames, reconstructions=frames,
+              labels=np.array(["road"]))
+    finish(run, cfg)
+
+
+def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) -> None:
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    build_hand_runs(runs)
+    break_runs(runs)
+    before = tree_state(runs)
+    statuses = render_all(runs, out)
+    assert tree_state(runs) == before, "the collector must not write, touch or delete anything under runs/"
+    assert not [s.id for s in statuses.values() if s.status == "error"], [s.error for s in statuses.values()]
+    readme = (out / "README.md").read_text()
+    for gap in ("carracing_plls_ppo/default seed=2: empty run dir",
+                "carracing_plls_ppo/default seed=1: status.json missing or unreadable",
+                "carracing_ppo/default seed=1: metrics/eval.jsonl: truncated last line skipped",
+                "carracing_ppo/default seed=1: curve ends before the method's last evaluation",
+                "cheetah_dbc/default: seed(s) 1 missing (budget.trials=2)",
+                "cheetah_dbc/default seed=0: status failed (RuntimeError: boom)",
+                "cheetah_dbc/default seed=0: metrics/eval.jsonl: 1 corrupt line(s) skipped",
+                "carracing_va/default seed=0: samples/action_reconstructions.npz missing or unreadable",
+                "carracing_vs/default seed=0: samples/state_reconstructions.npz: no frame labelled grass",
+                "carracing_ppo_vs/default: no runs"):
+        assert gap in readme, gap
+    assert statuses["fig18"].status == "partial" and statuses["fig18"].trials == {"PL-LS + PPO": 2, "PPO": 2}
+    assert statuses["fig21"].trials == {"PL-LS + DBC": 0, "DBC": 1} and statuses["fig16"].status == "empty"
+    last = pd.read_csv(out / "figures" / "fig18.csv").groupby("series").last()
+    assert last.loc["PPO", "n"] == 1  # the truncated trial lost its last evaluation
+    fig = BY_ID["fig18"].build(Runs(runs), BY_ID["fig18"], Options("iteration", PAPER_DIR)).figure
+    assert "PL-LS + PPO: 2 trials, PPO: 2 trials" in fig.get_suptitle()
+
+
+@pytest.mark.slow
+def test_every_registry_id_renders_from_synthetic_runs(tmp_path: Path) -> None:
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    build_all(runs)
+    statuses = render_all(runs, out)
+    assert list(statuses) == [e.id for e in ENTRIES]
+    assert {i: (s.status, s.gaps, s.error) for i, s in statuses.items() if s.status != "ok"} == {}
+    assert verify_outputs(out, statuses) == []
+    readme = (out / "README.md").read_text()
+    for entry in ENTRIES:
+        if entry.kind == "figure":
+            assert png_size(out / "figures" / f"{entry.id}.png") == (entry.size[0] * DPI, entry.size[1] * DPI)
+            assert len(pd.read_csv(out / "figures" / f"{entry.id}.csv")) > 0
+            assert f"](figures/{entry.id}.png)" in readme
+        else:
+            assert (out / "tables" / f"{entry.id}.md").read_text().strip() in readme
+            assert r"\begin{tabular}" in (out / "tables" / f"{entry.id}.tex").read_text()
+    assert "Budget profile: **quick**" in readme
+
+
+def test_output_check_catches_a_wrong_size_and_a_blank_image(tmp_path: Path) -> None:
+    from plls_bench.report.plot import new_figure, save_figure
+
+    (tmp_path / "runs").mkdir()
+    statuses = render_all(tmp_path / "runs", tmp_path / "out", only=["fig18", "fig21"])  # no runs: placeholders
+    assert verify_outputs(tmp_path / "out", statuses) == []
+    save_figure(new_figure((3.0, 2.0)), tmp_path / "out" / "figures" / "fig18")  # blank, and too small
+    fig = new_figure(BY_ID["fig21"].size)
+    save_figure(fig, tmp_path / "out" / "figures" / "fig21")  # right size, blank
+    assert verify_outputs(tmp_path / "out", statuses) == ["fig18: fig18.png missing or not 700x450 pixels",
+                                                           "fig21: fig21.png is blank"]
+
+
+def report_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "plls_bench.report", "--no-progress", *args], cwd=REPO_ROOT,
+                          env={**os.environ, "PYTHONUNBUFFERED": "1"}, capture_output=True, text=True, timeout=300)
+
+
+def test_cli_lists_the_registry_and_renders_one_id(tmp_path: Path) -> None:
+    listing = report_cli("--list")
+    assert listing.returncode == 0 and all(f"{e.id} " in listing.stdout for e in ENTRIES)
+    assert "carracing_ppo_vs, carracing_ppo_va" in listing.stdout  # Fig 20's presets
+    build_hand_runs(tmp_path / "runs")
+    done = report_cli("--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--only", "fig18")
+    assert done.returncode == 0, done.stderr
+    figures = sorted(p.name for p in (tmp_path / "out" / "figures").iterdir())
+    assert figures == ["fig18.csv", "fig18.pdf", "fig18.png"]
+    assert "not rendered yet" in (tmp_path / "out" / "README.md").read_text()
+
+
+@pytest.mark.parametrize(("args", "message"), [(["--only", "fig99"], "unknown id(s) fig99"),
+                                               (["--out", "{runs}/x"], "lies inside --runs"),
+                                               (["--runs", "{runs}/nope"], "no such directory")])
+def test_cli_refuses_bad_input_before_writing(tmp_path: Path, args: list[str], message: str,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    args = [a.format(runs=runs) for a in args]
+    defaults = [] if "--runs" in args else ["--runs", str(runs)]
+    defaults += [] if "--out" in args else ["--out", str(tmp_path / "out")]
+    assert report_main([*defaults, *args, "--no-progress"]) == 2  # in-process: the same code path, no import cost
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "out").exists() and list(runs.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_reproduce_runs_the_collector_after_the_presets(tmp_path: Path) -> None:
+    from plls_bench.reproduce import main as reproduce_main
+
+    runs, out = tmp_path / "runs", tmp_path / "out"
+    assert reproduce_main(["--profile", "smoke", "--only", "mountaincar_data", "--runs", str(runs),
+                           "--out", str(out)]) == 0
+    assert (runs / "mountaincar_data" / "default" / "seed=0" / "status.json").is_file()
+    readme = (out / "README.md").read_text()
+    assert "Budget profile: **smoke**" in readme and "mountaincar_ppo/default: no runs" in readme
+
+
+def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    paper = tmp_path / "paper"
+    paper.mkdir()
+    for path in PAPER_DIR.glob("*.csv"):
+        (paper / path.name).write_text(path.read_text())
+    claims = (paper / "claims.csv").read_text().splitlines()
+    claims[1] = claims[1].replace("repr_mse", "repr_mse_typo")
+    (paper / "claims.csv").write_text("\n".join(claims))
+    (tmp_path / "runs").mkdir()
+    args = ["--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--paper", str(paper)]
+    assert report_main(args) == 2
+    assert "claims.csv line 2: unknown kind 'repr_mse_typo'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
