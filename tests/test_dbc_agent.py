@@ -121,13 +121,21 @@ def test_learns_a_contextual_bandit_from_random_actions(runs_dir: Path) -> None:
 
 
 def test_accounting_counts_shared_conv_weights_once(runs_dir: Path) -> None:
+    from plls_bench.envs import make_vec_env
     from plls_bench.train.dbc_accounting import accounting
 
-    agent = DBCAgent((9, 84, 84), 6, small_cfg(runs_dir))
-    params, architecture = accounting(agent, (9, 84, 84))
+    cfg = compose_preset("cheetah_dbc", runs_dir, "algo.dbc.num_filters=4", "algo.dbc.hidden_dim=32")
+    agent = DBCAgent((9, 84, 84), 6, cfg.algo.dbc)
+    venv = make_vec_env(cfg.env, 1, 0)
+    try:
+        params, architecture = accounting(agent, venv)
+    finally:
+        venv.close()
     every = {id(p): p.numel() for m in agent.modules().values() for p in m.parameters()}
     assert params["total"] == sum(every.values()), "each parameter once, the shared trunk included"
     assert params["trainable"] == params["total"] - params["modules"]["critic_target"]["total"]
     conv = [row for row in architecture["encoder"] if row["type"] == "Conv2d"]
     assert conv[0]["output_shape"] == [1, 4, 41, 41] and conv[-1]["output_shape"] == [1, 4, 35, 35]
-    assert architecture["encoder"][-1]["type"] == "LayerNorm" and architecture["encoder"][-1]["output_shape"] == [1, 8]
+    assert architecture["encoder"][-1]["type"] == "LayerNorm" and architecture["encoder"][-1]["output_shape"] == [1, 50]
+    assert architecture["actor"][-1]["output_shape"] == [1, 12], "mean and log-std of 6 actions"
+    assert all(row["trainable"] == 0 for row in architecture["critic_target"])

@@ -8,8 +8,10 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from plls_bench.artifacts import load_npz
 from plls_bench.runs import read_json, read_jsonl
 from tests.conftest import REPO_ROOT, compose_preset
 
@@ -19,8 +21,8 @@ TRAIN_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "loss/critic", 
               "loss/encoder_bisim", "loss/transition", "loss/reward", "perf/updates_per_s", "perf/env_steps_per_s"}
 
 
-def cli(runs_dir: Path, *overrides: str) -> list[str]:
-    return [sys.executable, "-m", "plls_bench", "+experiment=cheetah_dbc", "budget=smoke",
+def cli(runs_dir: Path, *overrides: str, experiment: str = "cheetah_dbc") -> list[str]:
+    return [sys.executable, "-m", "plls_bench", f"+experiment={experiment}", "budget=smoke",
             f"runs_dir={runs_dir}", "progress=false", "torch_threads=1", *overrides]
 
 
@@ -49,7 +51,7 @@ def check_contract(run_dir: Path) -> list[dict]:
     assert TRAIN_KEYS <= set(train[-1]), TRAIN_KEYS - set(train[-1])
     params = read_json(run_dir / "metrics" / "params.json")
     assert params["total"] == sum(m["total"] for m in params["modules"].values())
-    assert params["modules"]["critic_target"]["trainable"] == 0
+    assert params["modules"]["critic_target"]["trainable"] == 0 and params["trainable"] < params["total"]
     convs = [layer for layer in read_json(run_dir / "metrics" / "architecture.json")["encoder"]
              if layer["type"] == "Conv2d"]
     assert [c["output_shape"] for c in convs] == [[1, 32, 41, 41], [1, 32, 39, 39], [1, 32, 37, 37], [1, 32, 35, 35]]
@@ -84,6 +86,24 @@ def test_cheetah_dbc_from_pixels_survives_sigkill_and_resumes(runs_dir: Path) ->
     assert progress["replay_written"] == 102 and progress["agent_steps"] == 100
     output = done.stdout + done.stderr  # memory use is reported at start
     assert "replay: 102 slots" in output and "reference layout 190548 bytes/transition" in output
+
+
+@pytest.mark.slow
+def test_plls_dbc_acts_through_the_frozen_action_decoder(runs_dir: Path) -> None:
+    """PL-LS + DBC: the same runner, acting in V_a's 12-D latent box; V_a is built on first use."""
+    done = subprocess.run(cli(runs_dir, experiment="cheetah_plls_dbc"), cwd=REPO_ROOT, capture_output=True,
+                          text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    run_dir = runs_dir / "cheetah_plls_dbc" / "default" / "seed=0"
+    check_contract(run_dir)
+    params = read_json(run_dir / "metrics" / "params.json")
+    assert params["modules"]["V_a.decoder"]["total"] > 0 and params["modules"]["V_a.decoder"]["trainable"] == 0
+    architecture = read_json(run_dir / "metrics" / "architecture.json")
+    assert architecture["actor"][-1]["output_shape"] == [1, 24], "mean and log-std of e in R^12"
+    assert architecture["V_a.decoder"][-1]["output_shape"] == [1, 6], "decoded to cheetah's 6-D action"
+    chunks = sorted((run_dir / "checkpoints" / "replay").glob("chunk_*.npz"))
+    actions = np.concatenate([load_npz(c)["actions"] for c in chunks])
+    assert actions.shape[1] == 12 and np.abs(actions).max() <= 1.0, "stored: the agent's e / bound"
 
 
 def test_dbc_settings_are_validated(runs_dir: Path) -> None:

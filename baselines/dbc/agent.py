@@ -58,7 +58,7 @@ class DBCAgent:
         self.reward_decoder = reward_decoder(cfg.encoder_feature_dim, cfg.model_hidden_dim)
         for module in (self.critic, self.actor, self.transition, self.reward_decoder):
             module.apply(weight_init)
-        self.critic_target = copy.deepcopy(self.critic)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)  # Polyak-averaged only
         for module in self.modules().values():
             module.to(self.device)
         self.log_alpha = torch.tensor(math.log(cfg.init_temperature), device=self.device, requires_grad=True)

@@ -15,12 +15,14 @@ import math
 import time
 
 import numpy as np
-import torch
+from stable_baselines3.common.vec_env import VecEnv
 from tqdm.auto import tqdm
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.config import Config
 from plls_bench.envs import make_vec_env
+from plls_bench.latent import wrap_latent
+from plls_bench.repr import resolve_device
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 from plls_bench.train.dbc_accounting import write_accounting
@@ -29,17 +31,12 @@ from plls_bench.train.dbc_state import Progress, load_checkpoint, save_checkpoin
 log = logging.getLogger(__name__)
 
 
-def make_envs(cfg: Config, train_seed: int):
-    """The training and evaluation VecEnvs (one env each), with V_a's decoder when it is on."""
-    envs = []
-    for seed in (train_seed, train_seed + 1):  # eval envs are re-seeded at every evaluation
-        venv = make_vec_env(cfg.env, 1, seed)
-        if cfg.repr.action.kind != "none":
-            from plls_bench.latent import wrap_latent  # issue 3: V_a's decoder as a VecEnv wrapper
-
-            venv = wrap_latent(venv, cfg)
-        envs.append(venv)
-    return envs
+def make_envs(cfg: Config, train_seed: int) -> tuple[VecEnv, VecEnv]:
+    """The training and evaluation VecEnvs (one env each), through the latent wrappers: with
+    ``repr/action=vae`` the agent acts in V_a's latent box (PL-LS + DBC), else they are unchanged.
+    The evaluation env is re-seeded at every evaluation."""
+    train, evaluation = (wrap_latent(make_vec_env(cfg.env, 1, seed), cfg) for seed in (train_seed, train_seed + 1))
+    return train, evaluation
 
 
 def to_env_action(action: np.ndarray, space) -> np.ndarray:
@@ -95,8 +92,7 @@ class DBCTrainer:
     def __init__(self, cfg: Config, run: Run) -> None:
         self.cfg, self.run, self.dbc = cfg, run, cfg.algo.dbc
         self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
-        self.device = torch.device("cuda" if cfg.device == "auto" and torch.cuda.is_available()
-                                   else "cpu" if cfg.device == "auto" else cfg.device)
+        self.device = resolve_device(cfg.device)
         self.train_env, self.eval_env = make_envs(cfg, self.seeds.train)
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))

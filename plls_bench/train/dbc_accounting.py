@@ -1,92 +1,75 @@
-"""``metrics/params.json`` and ``metrics/architecture.json`` of a DBC run (README contract).
+"""``metrics/params.json`` and ``metrics/architecture.json`` of a DBC run, with the shared
+helpers of :mod:`plls_bench.repr.accounting`.
 
-Modules: ``encoder`` (the critic's conv trunk, shared with the actor, and its Linear + LayerNorm),
-``actor`` (its own Linear + LayerNorm head and MLP), ``critic`` (twin Q), ``critic_target``
-(Polyak-averaged, so not trainable), ``transition_model``, ``reward_decoder`` and, for PL-LS, the
-frozen ``action_decoder`` (V_a's decoder). Shared parameters are counted once. Output shapes are
-recorded by hooks during one probe forward pass on a batch of one (batch dimension included);
-``trainable`` is the number of parameters the learner updates.
+Modules: ``encoder`` (the critic's conv trunk, shared with the actor, and its Linear +
+LayerNorm), ``actor`` (its own Linear + LayerNorm head and MLP, from the trunk's features),
+``critic`` (twin Q on ``[z, a]``), ``critic_target`` (Polyak-averaged: not trainable),
+``transition_model`` (on ``[z, a]``), ``reward_decoder`` and, for PL-LS + DBC, the frozen
+``V_a.decoder``. Modules whose forward takes several tensors are summarised through a one-input
+adapter that runs the same layers in the same order.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import torch
 import torch.nn as nn
+from stable_baselines3.common.vec_env import VecEnv
 
 from baselines.dbc import DBCAgent
+from plls_bench.latent import latent_modules
+from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.runs import Run
 
 
-def module_groups(agent: DBCAgent) -> dict[str, tuple[nn.Module, bool]]:
-    """name -> (module, trainable by gradient) for every part of the agent, shared parts once."""
-    actor, critic = agent.actor, agent.critic
-    return {
-        "encoder": (critic.encoder, True),
-        "actor": (nn.ModuleDict({"encoder_fc": actor.encoder.fc, "encoder_ln": actor.encoder.ln,
-                                 "trunk": actor.trunk}), True),
-        "critic": (nn.ModuleDict({"q1": critic.q1, "q2": critic.q2}), True),
-        "critic_target": (agent.critic_target, False),
-        "transition_model": (agent.transition, True),
-        "reward_decoder": (agent.reward_decoder, True),
+class _OneInput(nn.Module):
+    """``fn(x)`` over ``parts``, so a summary can drive a module that takes several inputs."""
+
+    def __init__(self, fn: Callable[[torch.Tensor], Any], **parts: nn.Module) -> None:
+        super().__init__()
+        self.parts, self.fn = nn.ModuleDict(parts), fn
+
+    def forward(self, x: torch.Tensor) -> Any:
+        return self.fn(x)
+
+
+def modules_and_examples(agent: DBCAgent, obs_shape: tuple[int, ...],
+                         action_dim: int) -> tuple[dict[str, nn.Module], dict[str, torch.Tensor]]:
+    """The agent's modules by name, each with an example batch of one it accepts."""
+    actor, critic, target, transition = agent.actor, agent.critic, agent.critic_target, agent.transition
+    z_dim, features = critic.encoder.feature_dim, critic.encoder.trunk.out_dim
+
+    def split(za: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return za[:, :z_dim], za[:, z_dim:]
+
+    modules = {
+        "encoder": critic.encoder,
+        "actor": nn.Sequential(actor.encoder.fc, actor.encoder.ln, actor.trunk),
+        "critic": _OneInput(lambda za: (critic.q1(za), critic.q2(za)), q1=critic.q1, q2=critic.q2),
+        "critic_target": _OneInput(lambda obs: target(target.encoder.features(obs), torch.zeros(
+            len(obs), action_dim, device=obs.device)), critic=target),
+        "transition_model": _OneInput(lambda za: transition(*split(za)), model=transition),
+        "reward_decoder": agent.reward_decoder,
     }
+    zeros = {"obs": torch.zeros(1, *obs_shape), "features": torch.zeros(1, features),
+             "z": torch.zeros(1, z_dim), "za": torch.zeros(1, z_dim + action_dim)}
+    examples = {"encoder": zeros["obs"], "actor": zeros["features"], "critic": zeros["za"],
+                "critic_target": zeros["obs"], "transition_model": zeros["za"], "reward_decoder": zeros["z"]}
+    return modules, {k: v.to(agent.device) for k, v in examples.items()}
 
 
-def _probe(agent: DBCAgent, obs_shape: tuple[int, ...]) -> None:
-    """One forward pass through every module (batch of one zero observation)."""
-    obs = torch.zeros(1, *obs_shape, device=agent.device)
-    with torch.no_grad():
-        features = agent.critic.encoder.features(obs)
-        z = agent.critic.encoder.head(features)
-        _, action, _, _ = agent.actor(features)
-        agent.critic(features, action)
-        agent.critic_target(agent.critic_target.encoder.features(obs), action)
-        agent.reward_decoder(agent.transition.sample(z, action))
+def accounting(agent: DBCAgent, venv: VecEnv) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``(params, architecture)`` of the agent acting in ``venv`` (V_a's decoder when wrapped)."""
+    action_dim = int(venv.action_space.shape[0])
+    modules, examples = modules_and_examples(agent, venv.observation_space.shape, action_dim)
+    for name, module in latent_modules(venv).items():  # frozen, run by the wrappers
+        first = next(m for m in module.modules() if isinstance(m, nn.Linear))
+        modules[name], examples[name] = module, torch.zeros(1, first.in_features, device=first.weight.device)
+    trainable = [name for name in modules if name not in ("critic_target", *latent_modules(venv))]
+    return parameter_counts(modules, trainable), architecture_summary(modules, examples)
 
 
-def _is_leaf(module: nn.Module) -> bool:
-    return next(module.children(), None) is None
-
-
-def _layers(module: nn.Module, trainable: bool, shapes: dict[int, list[int]]) -> list[dict[str, Any]]:
-    rows = []
-    for name, leaf in module.named_modules():
-        if not _is_leaf(leaf):
-            continue
-        count = sum(p.numel() for p in leaf.parameters(recurse=False))
-        rows.append({"name": name, "type": type(leaf).__name__, "output_shape": shapes.get(id(leaf)),
-                     "params": count, "trainable": count if trainable else 0})
-    return rows
-
-
-def accounting(agent: DBCAgent, obs_shape: tuple[int, ...],
-               extra: dict[str, nn.Module] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``(params, architecture)`` in the README's format; ``extra`` modules are frozen (V_a)."""
-    groups = {**module_groups(agent), **{k: (m, False) for k, m in (extra or {}).items()}}
-    shapes: dict[int, list[int]] = {}
-    def record(module: nn.Module, _inputs: Any, output: torch.Tensor) -> None:
-        shapes.setdefault(id(module), list(output.shape))
-
-    hooks = [leaf.register_forward_hook(record)
-             for module, _ in groups.values() for leaf in module.modules() if _is_leaf(leaf)]
-    try:
-        _probe(agent, obs_shape)
-    finally:
-        for hook in hooks:
-            hook.remove()
-    modules = {name: {"total": sum(p.numel() for p in m.parameters()),
-                      "trainable": sum(p.numel() for p in m.parameters()) if trainable else 0}
-               for name, (m, trainable) in groups.items()}
-    params = {"total": sum(v["total"] for v in modules.values()),
-              "trainable": sum(v["trainable"] for v in modules.values()), "modules": modules}
-    architecture = {name: _layers(m, trainable, shapes) for name, (m, trainable) in groups.items()}
-    return params, architecture
-
-
-def write_accounting(run: Run, agent: DBCAgent, venv: Any) -> None:
-    """Write both files for the agent acting in ``venv`` (V_a's decoder included when wrapped)."""
-    decoder = getattr(venv, "decoder", None)
-    extra = {"action_decoder": decoder} if isinstance(decoder, nn.Module) else None
-    params, architecture = accounting(agent, venv.observation_space.shape, extra)
+def write_accounting(run: Run, agent: DBCAgent, venv: VecEnv) -> None:
+    params, architecture = accounting(agent, venv)
     run.write_json("metrics/params.json", params)
     run.write_json("metrics/architecture.json", architecture)
