@@ -48,16 +48,18 @@ def measure(preset: str, budget: str, threads: int, steps: int, updates: int, ru
         for _ in range(steps):
             obs, _, _ = trainer.step(obs, updates=False)
         acting = time.perf_counter() - start
-        times = []
+        times, cpu = [], []
         for i in range(updates + 2):  # two warm-up updates
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             trainer.agent.update(trainer.replay.sample(cfg.algo.dbc.batch_size, trainer.rng, trainer.device), i)
             times.append(time.perf_counter() - start)
-        per_update = statistics.median(times[2:])
+            cpu.append(time.process_time() - start_cpu)
+        per_update, cpu_per_update = statistics.median(times[2:]), statistics.median(cpu[2:])
     finally:
         trainer.train_env.close()
         trainer.eval_env.close()
     return {"env_sps": steps * cfg.env.action_repeat / acting, "update_s": per_update, "ups": 1.0 / per_update,
+            "cpu_s": cpu_per_update,
             "batch": cfg.algo.dbc.batch_size, "bytes": trainer.replay.bytes_per_slot(),
             "reference_bytes": trainer.replay.reference_bytes_per_transition()}
 
@@ -78,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     for preset in args.presets:
         for threads in args.threads:
             m = measure(preset, args.budget, threads, args.steps, args.updates, args.runs)
-            rows.append(f"| `{preset}` | {threads} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | "
+            rows.append(f"| `{preset}` | {threads} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | {m['cpu_s']:.2f} | "
                         f"**{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
             print(rows[-1], flush=True)
     after = machine()
@@ -88,9 +90,11 @@ def main(argv: list[str] | None = None) -> int:
         f"Command: `{command}`  ", f"Machine: {after}  ",
         f"Acting: {args.steps} agent steps (render, stochastic policy, replay insert; no updates), in env "
         f"steps (frames) per second. Updates: median of {args.updates} full DBC updates after 2 warm-up. "
-        "Replay bytes per transition: this suite's frame replay / the reference's layout.", "",
-        "| preset | torch threads | acting env steps/s | batch | s / update | updates/s | replay bytes |",
-        "|---|---|---|---|---|---|---|", *rows])
+        "CPU s / update is the process time (all threads), less sensitive than wall time to other "
+        "processes on a shared machine. Replay bytes per transition: this suite's frame replay / the "
+        "reference's layout.", "",
+        "| preset | torch threads | acting env steps/s | batch | s / update | CPU s / update | updates/s "
+        "| replay bytes |", "|---|---|---|---|---|---|---|---|", *rows])
     if not args.no_write:
         write_section(SECTION, text)
     return 0
