@@ -56,7 +56,7 @@ class DBCAgent:
         self.transition = TransitionModel(cfg.encoder_feature_dim, action_dim, cfg.model_hidden_dim,
                                           cfg.transition_model == "probabilistic", cfg.sigma_min, cfg.sigma_max)
         self.reward_decoder = reward_decoder(cfg.encoder_feature_dim, cfg.model_hidden_dim)
-        for module in (self.critic, self.actor, self.transition, self.reward_decoder):
+        for module in (self.critic, self.actor):  # the reference leaves the models at torch's init
             module.apply(weight_init)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)  # Polyak-averaged only
         for module in self.modules().values():
