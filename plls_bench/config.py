@@ -193,9 +193,15 @@ class ActionReprConfig(Validated):
 
 @dataclass
 class ReprConfig(Validated):
+    """Both representations and how trials share them. Default: one dataset and one model per
+    task, shared by all trials (the paper's offline phase). ``per_trial_training``: every trial
+    trains its own model on the shared dataset (trial 0's is the shared one). ``per_trial``:
+    every trial also collects its own dataset."""
+
     state: StateReprConfig = field(default_factory=StateReprConfig)
     action: ActionReprConfig = field(default_factory=ActionReprConfig)
     per_trial: bool = False
+    per_trial_training: bool = False
 
 
 # --------------------------------------------------------------------------- algorithms
