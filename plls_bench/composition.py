@@ -65,3 +65,9 @@ def describe_error(err: BaseException) -> str:
                 parts.append(line)
         seen = seen.__cause__
     return " | ".join(parts) or type(err).__name__
+
+
+def config_from_dict(data: dict) -> Config:
+    """The typed config recorded in a run's ``config.json`` (validated again)."""
+    register()
+    return to_config(OmegaConf.merge(OmegaConf.structured(Config), data))

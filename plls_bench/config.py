@@ -18,6 +18,9 @@ ENV_NAMES = ("mountaincar", "carracing", "cheetah")
 REPR_KINDS = ("none", "vae")
 ALGO_NAMES = ("ppo", "dbc", "none")
 BUDGET_NAMES = ("smoke", "quick", "paper")
+DATA_POLICIES = ("uniform", "correlated")
+FEATURE_EXTRACTORS = ("mlp", "paper_cnn")
+ACTIVATIONS = ("tanh", "relu")
 
 
 class ConfigError(ValueError):
@@ -82,6 +85,8 @@ class EnvConfig(Validated):
     data_num_envs: int = 1
     data_async: bool = False
     data_train_fraction: float = MISSING
+    data_policy: str = "uniform"
+    data_policy_correlation: float = 0.95
 
     def validate(self) -> None:
         check_choice(self.name, ENV_NAMES, "env.name")
@@ -90,6 +95,9 @@ class EnvConfig(Validated):
         check_positive(self.action_repeat, "env.action_repeat")
         check_positive(self.data_num_envs, "env.data_num_envs")
         check_fraction(self.data_train_fraction, "env.data_train_fraction")
+        check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
+        check(0 <= self.data_policy_correlation < 1, "env.data_policy_correlation",
+              f"must be in [0, 1), got {self.data_policy_correlation!r}")
         if self.pixels or self.data_pixels:
             check_positive(self.image_size, "env.image_size")
 
@@ -185,15 +193,27 @@ class ActionReprConfig(Validated):
 
 @dataclass
 class ReprConfig(Validated):
+    """Both representations and how trials share them. Default: one dataset and one model per
+    task, shared by all trials (the paper's offline phase). ``per_trial_training``: every trial
+    trains its own model on the shared dataset (trial 0's is the shared one). ``per_trial``:
+    every trial also collects its own dataset."""
+
     state: StateReprConfig = field(default_factory=StateReprConfig)
     action: ActionReprConfig = field(default_factory=ActionReprConfig)
     per_trial: bool = False
+    per_trial_training: bool = False
 
 
 # --------------------------------------------------------------------------- algorithms
 @dataclass
 class PPOConfig(Validated):
-    """stable-baselines3 PPO settings (Tables 1 and 2 of the paper)."""
+    """stable-baselines3 PPO settings (Tables 1 and 2 of the paper) and the shared policy/value net.
+
+    The paper's networks share one trunk between policy and value (Sec. 5.1, 5.2). In SB3 that is a
+    features extractor shared by actor and critic with linear heads: ``mlp`` is an MLP of
+    ``policy_hidden`` on vector observations; ``paper_cnn`` is ``cnn_channels`` conv layers
+    followed by ``cnn_hidden`` fully connected layers on (C, H, W) images.
+    """
 
     n_steps: int = MISSING
     learning_rate: float = MISSING
@@ -206,23 +226,45 @@ class PPOConfig(Validated):
     vf_coef: float = MISSING
     ent_coef: float = MISSING
     max_grad_norm: float = 0.5
+    features_extractor: str = "mlp"
     policy_hidden: list[int] = field(default_factory=lambda: [64, 64])
-    features_extractor: str = "flatten"
+    activation: str = "tanh"
+    cnn_channels: list[int] = field(default_factory=lambda: [32, 64, 128, 256])
+    cnn_kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 4, 4])
+    cnn_stride: int = 2
+    cnn_hidden: list[int] = field(default_factory=lambda: [32, 32])
     log_std_init: float = 0.0
+    ortho_init: bool = True
     vec_env: str = "dummy"
+    eval_envs: int = 1
+
+    @property
+    def steps_per_iteration(self) -> int:
+        """Env steps of one PPO iteration (one rollout and update): ``n_envs * n_steps``."""
+        return self.n_envs * self.n_steps
 
     def validate(self) -> None:
-        for key in ("n_steps", "learning_rate", "n_epochs", "batch_size", "n_envs", "max_grad_norm"):
+        for key in ("n_steps", "learning_rate", "n_epochs", "n_envs", "max_grad_norm", "cnn_stride",
+                    "eval_envs"):
             check_positive(getattr(self, key), f"algo.ppo.{key}")
+        check(isinstance(self.batch_size, int) and self.batch_size > 1, "algo.ppo.batch_size",
+              f"must be an int > 1 (SB3 normalises advantages per minibatch), got {self.batch_size!r}")
+        check(self.batch_size <= self.steps_per_iteration, "algo.ppo.batch_size",
+              f"{self.batch_size} exceeds the rollout of algo.ppo.n_envs x algo.ppo.n_steps = "
+              f"{self.steps_per_iteration}")
         check_fraction(self.gamma, "algo.ppo.gamma", open_right=False)
         check_fraction(self.gae_lambda, "algo.ppo.gae_lambda", open_right=False)
         check_positive(self.clip_range, "algo.ppo.clip_range")
         check_nonnegative(self.vf_coef, "algo.ppo.vf_coef")
         check_nonnegative(self.ent_coef, "algo.ppo.ent_coef")
-        check_choice(self.features_extractor, ("flatten", "paper_cnn"), "algo.ppo.features_extractor")
+        check_choice(self.features_extractor, FEATURE_EXTRACTORS, "algo.ppo.features_extractor")
+        check_choice(self.activation, ACTIVATIONS, "algo.ppo.activation")
         check_choice(self.vec_env, ("dummy", "subproc"), "algo.ppo.vec_env")
-        for i, width in enumerate(self.policy_hidden):
-            check_positive(width, f"algo.ppo.policy_hidden[{i}]")
+        check(len(self.cnn_kernel_sizes) == len(self.cnn_channels), "algo.ppo.cnn_kernel_sizes",
+              "needs one kernel size per entry of algo.ppo.cnn_channels")
+        for name in ("policy_hidden", "cnn_channels", "cnn_kernel_sizes", "cnn_hidden"):
+            for i, width in enumerate(getattr(self, name)):
+                check_positive(width, f"algo.ppo.{name}[{i}]")
 
 
 TRANSITION_MODELS = ("deterministic", "probabilistic")
@@ -314,12 +356,14 @@ class BudgetConfig(Validated):
     train_env_steps: int = MISSING
     eval_every_env_steps: int = MISSING
     eval_episodes: int = MISSING
+    eval_max_steps: int = 0  # cap on a test episode's agent steps; 0 = the env's own time limit
 
     def validate(self) -> None:
         check_choice(self.name, BUDGET_NAMES, "budget.name")
         for key in ("trials", "data_episodes", "data_steps_per_episode", "repr_epochs",
                     "train_env_steps", "eval_every_env_steps", "eval_episodes"):
             check_positive(getattr(self, key), f"budget.{key}")
+        check_nonnegative(self.eval_max_steps, "budget.eval_max_steps")
         if self.repr_action_epochs is not None:
             check_positive(self.repr_action_epochs, "budget.repr_action_epochs")
 
@@ -365,6 +409,8 @@ class Config(Validated):
         if self.runner in ("ppo", "dbc"):
             check(self.algo.name == self.runner, "algo",
                   f"runner={self.runner} needs algo={self.runner}, got algo.name={self.algo.name}")
+        if self.runner == "ppo" and self.algo.ppo is not None:
+            self._check_ppo_network(self.algo.ppo)
         if self.runner == "repr":
             check("vae" in (self.repr.state.kind, self.repr.action.kind), "repr",
                   "runner=repr needs repr/state=vae or repr/action=vae (both are none)")
@@ -383,6 +429,15 @@ class Config(Validated):
         check(state.decoded_size(size) == size, "repr.state.deconv_kernel_sizes",
               f"{state.deconv_kernel_sizes} decode the {sizes[-1]}x{sizes[-1]} feature map to "
               f"{state.decoded_size(size)}x{state.decoded_size(size)}, not {size}x{size}")
+
+    def _check_ppo_network(self, ppo: PPOConfig) -> None:
+        """The policy's trunk must fit what it sees: images unless V_s encodes them."""
+        images = self.env.pixels and self.repr.state.kind == "none"
+        want = "paper_cnn" if images else "mlp"
+        seen = "images" if images else "vectors"
+        check(ppo.features_extractor == want, "algo.ppo.features_extractor",
+              f"{ppo.features_extractor} does not fit the policy's observations ({seen}: env={self.env.name}, "
+              f"repr.state={self.repr.state.kind}); use {want}")
 
 
 def register_configs() -> None:

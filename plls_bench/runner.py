@@ -18,6 +18,7 @@ log = logging.getLogger(__name__)
 
 RUNNERS: dict[str, str] = {
     "collect": "plls_bench.data:run",
+    "ppo": "plls_bench.train.ppo:run",
     "repr": "plls_bench.repr.train:run",
     "dbc": "plls_bench.train.dbc:run",
 }

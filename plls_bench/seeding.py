@@ -21,17 +21,12 @@ class Seeds:
     eval: int   # evaluation envs (separately seeded, never used for learning)
 
 
-def _child(entropy: int, stream: int) -> int:
-    seq = np.random.SeedSequence(entropy=entropy, spawn_key=(stream,))
-    return int(seq.generate_state(1, dtype=np.uint32)[0])
-
-
 def derive_seeds(seed: int, data_seed: int, per_trial_data: bool = False) -> Seeds:
     """Seeds of every stream for trial ``seed``."""
     return Seeds(
-        data=_child(seed if per_trial_data else data_seed, _DATA),
-        train=_child(seed, _TRAIN),
-        eval=_child(seed, _EVAL),
+        data=sub_seed(seed if per_trial_data else data_seed, _DATA),
+        train=sub_seed(seed, _TRAIN),
+        eval=sub_seed(seed, _EVAL),
     )
 
 
@@ -49,3 +44,10 @@ def seed_everything(seed: int) -> None:
     except ImportError:
         return
     torch.manual_seed(seed)
+
+
+def sub_seed(seed: int, *key: int) -> int:
+    """A seed for the sub-stream ``key`` of a stream seeded by ``seed`` (e.g. the training envs'
+    resets after a resume at iteration k: ``sub_seed(train, k)``)."""
+    seq = np.random.SeedSequence(entropy=seed, spawn_key=tuple(key))
+    return int(seq.generate_state(1, dtype=np.uint32)[0])

@@ -42,9 +42,22 @@ def compose_preset(experiment: str | None, runs_dir: Path, *overrides: str) -> C
 
 def run_cli(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
     """``python -m plls_bench ARGS`` in the repo root, as a user would run it."""
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.run([sys.executable, "-m", "plls_bench", *args], cwd=REPO_ROOT, env=env,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(cli_command(*args), cwd=REPO_ROOT, env=_cli_env(), capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def start_cli(*args: str) -> subprocess.Popen[str]:
+    """``python -m plls_bench ARGS`` started in the background (e.g. to kill it mid-run)."""
+    return subprocess.Popen(cli_command(*args), cwd=REPO_ROOT, env=_cli_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+
+
+def cli_command(*args: str) -> list[str]:
+    return [sys.executable, "-m", "plls_bench", *args]
+
+
+def _cli_env() -> dict[str, str]:
+    return {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 
 def in_two_processes(target: Callable[..., None], *args: Any, timeout: float = 240) -> list[Any]:

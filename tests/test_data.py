@@ -77,3 +77,32 @@ def test_two_processes_build_the_dataset_once(tmp_path: Path) -> None:
     assert sorted(built for built, _ in results) == [False, True]
     assert results[0][1] == results[1][1]
     assert not list((tmp_path / "artifacts" / "data").glob(".*tmp*")), "no temp dirs left behind"
+
+
+def test_correlated_random_policy_keeps_uniform_marginals_and_correlates_in_time() -> None:
+    import gymnasium as gym
+    from scipy import stats
+
+    from plls_bench.data.collect import action_stream
+
+    box = gym.spaces.Box(np.array([-1.0, 0.0, 0.0]), np.array([1.0, 1.0, 1.0]), dtype=np.float32)
+    uniform = action_stream(0, 20_000, box, "uniform")
+    correlated = action_stream(0, 20_000, box, "correlated", correlation=0.95)
+    for dim in range(3):
+        width = box.high[dim] - box.low[dim]
+        scaled = (correlated[:, dim] - box.low[dim]) / width
+        # thin by 100 steps so the KS test sees nearly independent draws
+        assert stats.kstest(scaled[::100], "uniform").pvalue > 0.01, dim
+        lag1 = np.corrcoef(correlated[:-1, dim], correlated[1:, dim])[0, 1]
+        assert lag1 > 0.9, dim
+        assert abs(np.corrcoef(uniform[:-1, dim], uniform[1:, dim])[0, 1]) < 0.05, dim
+    assert np.all(correlated >= box.low) and np.all(correlated <= box.high)
+
+
+def test_data_policy_is_part_of_the_dataset_identity(tmp_path: Path) -> None:
+    from plls_bench.data import dataset_key
+
+    uniform = compose_preset(None, tmp_path, "env=carracing", "env.data_policy=uniform")
+    correlated = compose_preset(None, tmp_path, "env=carracing")
+    assert correlated.env.data_policy == "correlated"
+    assert dataset_key(uniform) != dataset_key(correlated)

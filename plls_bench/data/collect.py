@@ -12,6 +12,7 @@ from functools import partial
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
+from scipy import special
 from tqdm.auto import tqdm
 
 from plls_bench.config import EnvConfig
@@ -28,10 +29,25 @@ class _Episode:
     truncated: list[bool] = field(default_factory=list)
 
 
-def _action_stream(seed: int, steps: int, space: gym.spaces.Box) -> np.ndarray:
-    """``(steps, action_dim)`` actions uniform in the action box: the random policy."""
+def action_stream(seed: int, steps: int, space: gym.spaces.Box, policy: str = "uniform",
+                  correlation: float = 0.0) -> np.ndarray:
+    """``(steps, action_dim)`` random-policy actions in the action box.
+
+    ``uniform``: independent draws, uniform in the box. ``correlated``: every action dimension
+    is still exactly uniform in its interval at every step, but consecutive actions are
+    correlated: a stationary AR(1) Gaussian process x_t = rho x_{t-1} + sqrt(1 - rho^2) eps_t
+    is mapped through the normal CDF onto the interval (rho = ``correlation``).
+    """
     rng = np.random.default_rng([seed, 1])  # distinct from the env's reset stream
-    return rng.uniform(space.low, space.high, size=(steps, *space.shape)).astype(np.float32)
+    if policy == "uniform":
+        return rng.uniform(space.low, space.high, size=(steps, *space.shape)).astype(np.float32)
+    noise = rng.standard_normal((steps, *space.shape))
+    latent = np.empty_like(noise)
+    latent[0] = noise[0]
+    scale = np.sqrt(1.0 - correlation**2)
+    for t in range(1, steps):
+        latent[t] = correlation * latent[t - 1] + scale * noise[t]
+    return (space.low + special.ndtr(latent) * (space.high - space.low)).astype(np.float32)
 
 
 def _vector_env(cfg: EnvConfig, n_envs: int) -> gym.vector.VectorEnv:
@@ -40,12 +56,12 @@ def _vector_env(cfg: EnvConfig, n_envs: int) -> gym.vector.VectorEnv:
     return vector_cls([factory] * n_envs, autoreset_mode=AutoresetMode.DISABLED)
 
 
-def _run_wave(envs: gym.vector.VectorEnv, seeds: list[int], max_steps: int,
-              bar: tqdm) -> list[_Episode]:
+def _run_wave(envs: gym.vector.VectorEnv, seeds: list[int], max_steps: int, bar: tqdm,
+              policy: str, correlation: float) -> list[_Episode]:
     """One episode per seed, in parallel; envs beyond ``len(seeds)`` idle."""
     n_envs = envs.num_envs
     single_space = envs.single_action_space
-    streams = [_action_stream(s, max_steps, single_space) for s in seeds]
+    streams = [action_stream(s, max_steps, single_space, policy, correlation) for s in seeds]
     reset_seeds = seeds + [seeds[-1]] * (n_envs - len(seeds))  # idle envs: any seed, data dropped
     obs, _ = envs.reset(seed=reset_seeds)
     episodes = [_Episode(observations=[obs[i]]) for i in range(len(seeds))]
@@ -101,7 +117,8 @@ def collect_random_policy(cfg: EnvConfig, episodes: int, max_steps: int, seed: i
         with tqdm(total=episodes * max_steps, desc=f"random-policy data ({cfg.name})",
                   unit="step", disable=not progress) as bar:
             for start in range(0, episodes, n_envs):
-                collected += _run_wave(envs, seeds[start:start + n_envs], max_steps, bar)
+                collected += _run_wave(envs, seeds[start:start + n_envs], max_steps, bar,
+                                       cfg.data_policy, cfg.data_policy_correlation)
     finally:
         envs.close()
     return _to_arrays(collected)

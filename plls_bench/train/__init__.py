@@ -1,1 +1,1 @@
-"""Policy-learning runners (PPO, DBC)."""
+"""Policy learning: the ``ppo`` runner on stable-baselines3 (the paper's networks, checkpoints) and the ``dbc`` runner."""

@@ -1,0 +1,114 @@
+"""Env steps per second of PPO methods at their presets' settings (default: MountainCar, Table 1).
+
+    .venv/bin/python bench/ppo_throughput.py                       # both MountainCar methods
+    .venv/bin/python bench/ppo_throughput.py --presets carracing_ppo carracing_plls_ppo --iterations 2
+
+Each preset's training vector env and SB3 model are built exactly as the ``ppo`` runner builds
+them (``budget=quick``: the paper's Table 1 / Table 2 PPO settings), one warm-up iteration runs,
+then ``--iterations`` PPO iterations (rollout + update, no evaluation) are timed. Prints the
+command and the machine, and rewrites this script's section of ``BENCHMARKS.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import shlex
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from plls_bench.composition import compose  # noqa: E402
+from plls_bench.seeding import derive_seeds, seed_everything  # noqa: E402
+from plls_bench.train.agent import build_vec_env, new_model  # noqa: E402
+from plls_bench.train.ppo import EpisodeStats  # noqa: E402
+
+SECTION = "ppo_throughput"
+
+
+def measure(preset: str, budget: str, iterations: int, runs_dir: str) -> dict[str, float]:
+    """Median seconds of rollout and update per PPO iteration, and env steps per second."""
+    cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false"])
+    assert cfg.algo.ppo is not None
+    if cfg.torch_threads > 0:
+        torch.set_num_threads(cfg.torch_threads)
+    seed = derive_seeds(cfg.seed, cfg.data_seed).train
+    seed_everything(seed)
+    venv = build_vec_env(cfg, cfg.algo.ppo.n_envs, seed)
+    model = new_model(cfg, venv)
+    steps = cfg.algo.ppo.steps_per_iteration
+    stats, rollout, total, cpu = EpisodeStats(), [], [], []
+    try:
+        for i in range(iterations + 1):  # iteration 0 warms up
+            start, start_cpu = time.perf_counter(), time.process_time()
+            model.learn(steps, callback=stats, reset_num_timesteps=False, log_interval=None)
+            if i:
+                rollout.append(stats.rollout_end - start)
+                total.append(time.perf_counter() - start)
+                cpu.append(time.process_time() - start_cpu)
+    finally:
+        venv.close()
+    r, t, c = statistics.median(rollout), statistics.median(total), statistics.median(cpu)
+    return {"steps": steps, "rollout_s": r, "update_s": t - r, "rollout_sps": steps / r, "sps": steps / t,
+            "cpu_s": c, "cpu_sps": steps / c, "threads": torch.get_num_threads()}
+
+
+def machine() -> str:
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    cpu = platform.processor() or platform.machine()
+    return f"{platform.node()}: {cpu}, {os.cpu_count()} cores, load average {load}; torch {torch.__version__}"
+
+
+def write_section(text: str, path: Path = REPO / "BENCHMARKS.md") -> None:
+    begin, end = f"<!-- {SECTION}:begin -->", f"<!-- {SECTION}:end -->"
+    old = path.read_text() if path.exists() else "# Benchmarks\n\nEach section is rewritten by the script it names.\n"
+    block = f"{begin}\n{text.rstrip()}\n{end}"
+    if begin in old and end in old:
+        new = old[:old.index(begin)] + block + old[old.index(end) + len(end):]
+    else:
+        new = old.rstrip() + "\n\n" + block + "\n"
+    path.write_text(new if new.endswith("\n") else new + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--presets", nargs="+", default=["mountaincar_ppo", "mountaincar_plls_ppo"])
+    parser.add_argument("--budget", default="quick", help="budget whose PPO settings are used")
+    parser.add_argument("--iterations", type=int, default=3, help="timed PPO iterations per preset")
+    parser.add_argument("--runs", default="results/runs", help="runs_dir (V_s / V_a artifacts are reused)")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    args = parser.parse_args(argv)
+    command = "nice -n 10 .venv/bin/python bench/ppo_throughput.py " + shlex.join(sys.argv[1:] if argv is None else argv)
+    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    rows = []
+    for preset in args.presets:
+        m = measure(preset, args.budget, args.iterations, args.runs)
+        rows.append(f"| `{preset}` | {m['steps']} | {m['rollout_s']:.2f} | {m['update_s']:.2f} | "
+                    f"{m['rollout_sps']:.0f} | **{m['sps']:.0f}** | {m['cpu_s']:.2f} | {m['cpu_sps']:.0f} | "
+                    f"{m['threads']} |")
+        print(rows[-1], flush=True)
+    after = machine()
+    print(f"machine (after): {after}")
+    text = "\n".join([
+        f"## PPO env steps per second (`bench/ppo_throughput.py`, budget={args.budget})", "",
+        f"Command: `{command}`  ", f"Machine: {after}  ",
+        f"Median of {args.iterations} PPO iterations after one warm-up; one iteration = n_envs x n_steps "
+        "env steps, rollout (env steps, policy forward, V_s / V_a forward) then the SB3 update "
+        "(n_epochs over minibatches). No evaluation. CPU s is the process's CPU time per iteration "
+        "(in-process vector env): steps per CPU-second are less disturbed by other load than steps/s.",
+        "", "| preset | env steps / iteration | rollout s | update s | rollout steps/s | steps/s | "
+        "CPU s / iteration | steps per CPU-s | torch threads |",
+        "|---|---|---|---|---|---|---|---|---|", *rows])
+    if not args.no_write:
+        write_section(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,74 @@
+"""Building blocks of the PPO runner: vector envs behind the PL-LS wrappers, the SB3 model, its
+parameter accounting, and loading a trained policy back from a run directory."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
+from torch import nn
+
+from plls_bench.composition import config_from_dict
+from plls_bench.config import Config
+from plls_bench.envs import make_vec_env
+from plls_bench.latent import latent_modules, wrap_latent
+from plls_bench.runs import read_json
+from plls_bench.train.checkpoint import latest
+from plls_bench.train.networks import policy_kwargs
+
+
+def build_vec_env(cfg: Config, n_envs: int, seed: int) -> VecEnv:
+    """``n_envs`` copies of the task, episode statistics recorded on the raw env (VecMonitor),
+    then V_s / V_a as configured (``wrap_latent``). Env i's first reset uses ``seed + i``."""
+    assert cfg.algo.ppo is not None
+    venv = make_vec_env(cfg.env, n_envs, seed, subproc=cfg.algo.ppo.vec_env == "subproc" and n_envs > 1)
+    return wrap_latent(VecMonitor(venv), cfg)
+
+
+def new_model(cfg: Config, venv: VecEnv) -> PPO:
+    """An untrained SB3 PPO with Table 1 / Table 2 settings and the paper's shared network."""
+    ppo = cfg.algo.ppo
+    assert ppo is not None
+    return PPO(ActorCriticPolicy, venv, learning_rate=ppo.learning_rate, n_steps=ppo.n_steps,
+               batch_size=ppo.batch_size, n_epochs=ppo.n_epochs, gamma=ppo.gamma,
+               gae_lambda=ppo.gae_lambda, clip_range=ppo.clip_range, ent_coef=ppo.ent_coef,
+               vf_coef=ppo.vf_coef, max_grad_norm=ppo.max_grad_norm, policy_kwargs=policy_kwargs(ppo),
+               device=cfg.device, verbose=0)
+
+
+def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str, torch.Tensor]]:
+    """Every module the method runs (the policy, trained; V_s's encoder / V_a's decoder, frozen)
+    and an example input batch for each, for ``params.json`` and ``architecture.json``."""
+    modules: dict[str, nn.Module] = {"policy": model.policy, **latent_modules(venv)}
+    shapes = {"policy": model.observation_space.shape,
+              "V_s.encoder": venv.unwrapped.observation_space.shape,  # the raw image
+              "V_a.decoder": venv.action_space.shape}                 # the policy's e
+    return modules, {name: torch.zeros(1, *shapes[name]) for name in modules}
+
+
+def load_trained(run_dir: str | Path, device: str = "cpu") -> tuple[Config, PPO]:
+    """The run's typed config and its last checkpointed policy (the final one once the run is
+    ``done``). The policy acts on ``build_vec_env(cfg, ...)`` observations (latent z with V_s) and
+    its actions are what that env's ``step`` takes (latent e with V_a): roll it out through
+    ``build_vec_env`` or ``wrap_latent`` so the frozen V_s / V_a are applied as in training."""
+    record = read_json(Path(run_dir) / "config.json")
+    if record is None:
+        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    found = latest(Path(run_dir))
+    if found is None:
+        raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
+    return config_from_dict(record["config"]), PPO.load(found[0], device=device)
+
+
+def sb3_metrics(values: dict[str, Any]) -> dict[str, float]:
+    """SB3's per-update logger values, renamed to the suite's prefixed metric names."""
+    names = {"train/policy_gradient_loss": "loss/policy", "train/value_loss": "loss/value",
+             "train/entropy_loss": "loss/entropy", "train/loss": "loss/total",
+             "train/approx_kl": "train/approx_kl", "train/clip_fraction": "train/clip_fraction",
+             "train/explained_variance": "train/explained_variance", "train/std": "train/action_std",
+             "train/learning_rate": "train/learning_rate", "train/clip_range": "train/clip_range",
+             "train/n_updates": "train/n_updates"}
+    return {new: float(values[old]) for old, new in names.items() if old in values}

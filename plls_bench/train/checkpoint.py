@@ -1,0 +1,78 @@
+"""PPO checkpoints: the SB3 model (weights and Adam state), RNG states and training progress.
+
+Layout under ``<run>/checkpoints/``::
+
+    ppo-<iteration>.zip   stable-baselines3's own format (``PPO.load`` reads it)
+    latest.json           written last and atomically: the commit point of a checkpoint
+
+``latest.json`` holds the progress (iteration, agent steps, wall time) and the RNG states of
+python, numpy's global generator (SB3 shuffles minibatches with it) and torch (action sampling),
+and names the zip it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
+zip intact; older zips are deleted only after the new ``latest.json`` is in place.
+"""
+from __future__ import annotations
+
+import base64
+import random
+from dataclasses import asdict, dataclass
+from io import BytesIO
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+
+from plls_bench.runs import Run, atomic_write_bytes, read_json
+
+LATEST = "latest.json"
+# Rollout leftovers are not needed: a resumed run resets its training envs (see ppo.py).
+_NOT_SAVED = ["_last_obs", "_last_episode_starts", "_last_original_obs"]
+
+
+@dataclass(frozen=True)
+class Progress:
+    iteration: int      # PPO iterations completed (rollout + update)
+    agent_steps: int    # env steps taken by the learner's vector env
+    wall_s: float       # wall-clock seconds of this run, summed over (re)starts
+
+
+def rng_state() -> dict[str, Any]:
+    """JSON-able states of python's, numpy's global and torch's CPU generators."""
+    kind, keys, pos, has_gauss, gauss = np.random.get_state()
+    version, internal, gauss_next = random.getstate()
+    return {"python": [version, list(internal), gauss_next],
+            "numpy": [kind, keys.tolist(), pos, has_gauss, gauss],
+            "torch": base64.b64encode(torch.get_rng_state().numpy().tobytes()).decode()}
+
+
+def set_rng_state(state: dict[str, Any]) -> None:
+    version, internal, gauss_next = state["python"]
+    random.setstate((version, tuple(internal), gauss_next))
+    kind, keys, pos, has_gauss, gauss = state["numpy"]
+    np.random.set_state((kind, np.asarray(keys, dtype=np.uint32), pos, has_gauss, gauss))
+    raw = np.frombuffer(base64.b64decode(state["torch"]), dtype=np.uint8).copy()
+    torch.set_rng_state(torch.from_numpy(raw))
+
+
+def save(run: Run, model: PPO, progress: Progress) -> None:
+    """Checkpoint ``model`` at ``progress``; committed when ``latest.json`` is replaced."""
+    name = f"ppo-{progress.iteration:07d}.zip"
+    buffer = BytesIO()
+    model.save(buffer, exclude=_NOT_SAVED)
+    atomic_write_bytes(run.checkpoints_dir / name, buffer.getvalue())
+    run.write_json(f"checkpoints/{LATEST}", {"model": name, "progress": asdict(progress), "rng": rng_state()})
+    for old in run.checkpoints_dir.glob("ppo-*.zip"):
+        if old.name != name:
+            old.unlink(missing_ok=True)
+
+
+def latest(run_path: Path) -> tuple[Path, Progress, dict[str, Any]] | None:
+    """The last committed checkpoint: (model zip, progress, rng state), or None."""
+    record = read_json(Path(run_path) / "checkpoints" / LATEST)
+    if record is None:
+        return None
+    zip_path = Path(run_path) / "checkpoints" / record["model"]
+    if not zip_path.is_file():
+        raise FileNotFoundError(f"{zip_path} named by {LATEST} is missing; the checkpoint is corrupt")
+    return zip_path, Progress(**record["progress"]), record["rng"]

@@ -1,0 +1,81 @@
+"""The paper's shared policy/value networks as stable-baselines3 features extractors.
+
+The paper shares one network between policy and value (Sec. 5.1, 5.2). SB3 2.x builds separate
+MLPs for pi and vf from ``net_arch``, so the shared trunk is a features extractor used by both
+(``share_features_extractor=True``) and the heads are linear (``net_arch=[]``): the Gaussian's mean
+and the value are each one linear layer on the trunk's output, plus SB3's state-independent log-std.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import torch
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from torch import nn
+
+from plls_bench.config import PPOConfig
+
+ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU}
+
+
+def _fully_connected(in_dim: int, widths: list[int], activation: str) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for width in widths:
+        layers += [nn.Linear(in_dim, width), ACTIVATIONS[activation]()]
+        in_dim = width
+    return nn.Sequential(*layers)
+
+
+class SharedMLP(BaseFeaturesExtractor):
+    """Vector observations ``(B, D)`` -> ``(B, hidden[-1])`` through fully connected layers."""
+
+    def __init__(self, observation_space: gym.spaces.Box, hidden: list[int], activation: str) -> None:
+        if len(observation_space.shape) != 1:
+            raise ValueError(f"SharedMLP needs vector observations, got shape {observation_space.shape}")
+        in_dim = int(observation_space.shape[0])
+        super().__init__(observation_space, features_dim=hidden[-1] if hidden else in_dim)
+        self.mlp = _fully_connected(in_dim, hidden, activation)
+
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
+        return self.mlp(observations)
+
+
+class PaperCNN(BaseFeaturesExtractor):
+    """Images ``(B, C, H, W)`` in [0, 1] -> ``(B, hidden[-1])``: conv layers (ReLU, as V_s's
+    encoder), flatten, then fully connected layers (Sec. 5.2: "four convolutional layers and two
+    fully connected layers")."""
+
+    def __init__(self, observation_space: gym.spaces.Box, channels: list[int], kernel_sizes: list[int],
+                 stride: int, hidden: list[int], activation: str) -> None:
+        if len(observation_space.shape) != 3:
+            raise ValueError(f"PaperCNN needs (C, H, W) images, got shape {observation_space.shape}")
+        convs: list[nn.Module] = []
+        in_ch = int(observation_space.shape[0])
+        for width, kernel in zip(channels, kernel_sizes):
+            convs += [nn.Conv2d(in_ch, width, kernel, stride=stride), nn.ReLU()]
+            in_ch = width
+        convs.append(nn.Flatten())
+        conv = nn.Sequential(*convs)
+        with torch.no_grad():
+            flat = int(conv(torch.zeros(1, *observation_space.shape)).shape[1])
+        super().__init__(observation_space, features_dim=hidden[-1] if hidden else flat)
+        self.conv = conv
+        self.fc = _fully_connected(flat, hidden, activation)
+
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
+        return self.fc(self.conv(observations))
+
+
+def policy_kwargs(ppo: PPOConfig) -> dict[str, Any]:
+    """SB3 ``policy_kwargs`` building the configured shared trunk with linear heads."""
+    if ppo.features_extractor == "mlp":
+        extractor: type[BaseFeaturesExtractor] = SharedMLP
+        kwargs: dict[str, Any] = {"hidden": list(ppo.policy_hidden), "activation": ppo.activation}
+    else:
+        extractor = PaperCNN
+        kwargs = {"channels": list(ppo.cnn_channels), "kernel_sizes": list(ppo.cnn_kernel_sizes),
+                  "stride": ppo.cnn_stride, "hidden": list(ppo.cnn_hidden), "activation": ppo.activation}
+    return {"features_extractor_class": extractor, "features_extractor_kwargs": kwargs,
+            "share_features_extractor": True, "net_arch": [], "log_std_init": ppo.log_std_init,
+            "ortho_init": ppo.ortho_init}
