@@ -21,6 +21,7 @@ from tqdm.auto import tqdm
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.config import Config
 from plls_bench.envs import make_vec_env
+from plls_bench.evaluate import run_episodes
 from plls_bench.latent import wrap_latent
 from plls_bench.repr import resolve_device
 from plls_bench.runs import Run
@@ -42,21 +43,6 @@ def make_envs(cfg: Config, train_seed: int) -> tuple[VecEnv, VecEnv]:
 def to_env_action(action: np.ndarray, space) -> np.ndarray:
     """Agent actions ``(N, A)`` in [-1, 1] -> the env's action box (V_a's latent box when wrapped)."""
     return (space.low + (action + 1.0) * 0.5 * (space.high - space.low)).astype(space.dtype)
-
-
-def evaluate(agent: DBCAgent, venv, episodes: int, seed: int) -> tuple[list[float], list[int]]:
-    """Returns and lengths (agent steps) of ``episodes`` deterministic-policy episodes."""
-    venv.seed(seed)
-    obs = venv.reset()
-    returns, lengths, ret, length = [], [], 0.0, 0
-    while len(returns) < episodes:
-        obs, reward, done, _ = venv.step(to_env_action(agent.act(obs, deterministic=True), venv.action_space))
-        ret, length = ret + float(reward[0]), length + 1
-        if done[0]:
-            returns.append(ret)
-            lengths.append(length)
-            ret, length = 0.0, 0
-    return returns, lengths
 
 
 def _stream_seed(seed: int, index: int) -> int:
@@ -185,8 +171,13 @@ class DBCTrainer:
 
     def _evaluate_and_checkpoint(self) -> None:
         p = self.progress
-        returns, lengths = evaluate(self.agent, self.eval_env, self.cfg.budget.eval_episodes,
-                                    _stream_seed(self.seeds.eval, p.evaluations))
+        def act(obs: np.ndarray) -> np.ndarray:
+            return to_env_action(self.agent.act(obs, deterministic=True), self.eval_env.action_space)
+
+        budget = self.cfg.budget
+        episodes = run_episodes(self.eval_env, act, budget.eval_episodes,
+                                _stream_seed(self.seeds.eval, p.evaluations), budget.eval_max_steps)
+        returns, lengths = episodes.returns, episodes.lengths
         self.run.log("eval", {**self._counters(), "episode_returns": returns, "episode_lengths": lengths,
                               "return_mean": float(np.mean(returns))})
         log.info("eval at %d env steps: return %.1f", p.env_steps, float(np.mean(returns)))
