@@ -67,6 +67,11 @@ def get_or_build(runs_dir: str | Path, kind: str, key: dict[str, Any],
     return Artifact(final, built=True)
 
 
+def is_built(runs_dir: str | Path, kind: str, key: dict[str, Any]) -> bool:
+    """Whether the artifact for ``key`` exists, complete."""
+    return _is_complete(artifact_path(runs_dir, kind, key))
+
+
 def discard(path: Path) -> None:
     """Remove a corrupt artifact so the next request rebuilds it (caller holds the lock or
     accepts a rebuild race, which the rename in :func:`get_or_build` makes safe)."""

@@ -193,9 +193,15 @@ class ActionReprConfig(Validated):
 
 @dataclass
 class ReprConfig(Validated):
+    """Both representations and how trials share them. Default: one dataset and one model per
+    task, shared by all trials (the paper's offline phase). ``per_trial_training``: every trial
+    trains its own model on the shared dataset (trial 0's is the shared one). ``per_trial``:
+    every trial also collects its own dataset."""
+
     state: StateReprConfig = field(default_factory=StateReprConfig)
     action: ActionReprConfig = field(default_factory=ActionReprConfig)
     per_trial: bool = False
+    per_trial_training: bool = False
 
 
 # --------------------------------------------------------------------------- algorithms
@@ -261,14 +267,66 @@ class PPOConfig(Validated):
                 check_positive(width, f"algo.ppo.{name}[{i}]")
 
 
+TRANSITION_MODELS = ("deterministic", "probabilistic")
+
+
 @dataclass
 class DBCConfig(Validated):
-    """Deep Bisimulation for Control (Zhang et al., 2021); filled in by baselines/dbc."""
+    """Deep Bisimulation for Control (Zhang et al., ICLR 2021): SAC + bisimulation encoder.
 
-    learning_rate: float = 1e-3
+    Values live in ``conf/algo/dbc.yaml`` with the reference flag each comes from
+    (facebookresearch/deep_bisim4control, ``train.py`` and the ``run_*.sh`` launchers).
+    """
+
+    transition_model: str = MISSING
+    hidden_dim: int = MISSING
+    batch_size: int = MISSING
+    discount: float = MISSING
+    init_steps: int = MISSING
+    replay_capacity: int = MISSING
+    encoder_feature_dim: int = MISSING
+    num_layers: int = MISSING
+    num_filters: int = MISSING
+    encoder_lr: float = MISSING
+    encoder_tau: float = MISSING
+    critic_lr: float = MISSING
+    critic_beta: float = MISSING
+    critic_tau: float = MISSING
+    critic_target_update_freq: int = MISSING
+    actor_lr: float = MISSING
+    actor_beta: float = MISSING
+    actor_log_std_min: float = MISSING
+    actor_log_std_max: float = MISSING
+    actor_update_freq: int = MISSING
+    init_temperature: float = MISSING
+    alpha_lr: float = MISSING
+    alpha_beta: float = MISSING
+    decoder_lr: float = MISSING
+    decoder_weight_lambda: float = MISSING
+    model_hidden_dim: int = MISSING
+    sigma_min: float = MISSING
+    sigma_max: float = MISSING
+    bisim_coef: float = MISSING
 
     def validate(self) -> None:
-        check_positive(self.learning_rate, "algo.dbc.learning_rate")
+        check_choice(self.transition_model, TRANSITION_MODELS, "algo.dbc.transition_model")
+        for key in ("hidden_dim", "batch_size", "replay_capacity", "encoder_feature_dim", "num_layers",
+                    "num_filters", "encoder_lr", "critic_lr", "critic_target_update_freq", "actor_lr",
+                    "actor_update_freq", "init_temperature", "alpha_lr", "decoder_lr",
+                    "model_hidden_dim", "sigma_min"):
+            check_positive(getattr(self, key), f"algo.dbc.{key}")
+        for key in ("init_steps", "decoder_weight_lambda", "bisim_coef"):
+            check_nonnegative(getattr(self, key), f"algo.dbc.{key}")
+        check_fraction(self.discount, "algo.dbc.discount")
+        for key in ("encoder_tau", "critic_tau"):
+            check_fraction(getattr(self, key), f"algo.dbc.{key}", open_right=False)
+        for key in ("critic_beta", "actor_beta", "alpha_beta"):
+            value = getattr(self, key)
+            check(0 <= value < 1, f"algo.dbc.{key}", f"must be in [0, 1), got {value!r}")
+        check(self.actor_log_std_min < self.actor_log_std_max, "algo.dbc.actor_log_std_min",
+              f"must be < algo.dbc.actor_log_std_max ({self.actor_log_std_max}), got {self.actor_log_std_min}")
+        check(self.sigma_min < self.sigma_max, "algo.dbc.sigma_min",
+              f"must be < algo.dbc.sigma_max ({self.sigma_max}), got {self.sigma_min}")
 
 
 @dataclass

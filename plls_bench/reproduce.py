@@ -1,81 +1,77 @@
-"""Run every experiment preset of a profile with all its trials, as Hydra multiruns.
+"""Run every experiment preset of a profile with all its trials as Hydra multiruns, then the
+results collector. ``./reproduce.sh`` bootstraps ``.venv`` and calls ``python -m plls_bench.reproduce``.
 
-``./reproduce.sh`` bootstraps ``.venv`` and then calls ``python -m plls_bench.reproduce``.
+Trials whose run dir is already done with the same config are not launched again, so an
+interrupted reproduce.sh re-run finishes only the rest; an interrupted trial resumes from its
+checkpoint. Parallelism and clusters go through Hydra's own launchers (joblib, submitit).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
-from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES, ConfigError
+from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile
+
+LAUNCHERS = ("local", "joblib", "slurm")
+EXIT_INTERRUPTED = 130
 
 
-@dataclass(frozen=True)
-class PlannedPreset:
-    experiment: str
-    trials: int
-    env: str
+def launcher_overrides(launcher: str, jobs: int, extra: list[str]) -> list[str]:
+    """Hydra overrides that select a launcher (conf/hydra/launcher/) for every multirun."""
+    if launcher == "joblib":
+        # one torch thread per trial: n_jobs processes must not oversubscribe the cores
+        return ["hydra/launcher=parallel", f"hydra.launcher.n_jobs={jobs}", "torch_threads=1", *extra]
+    if launcher == "slurm":
+        return ["hydra/launcher=slurm", *extra]
+    return list(extra)
 
 
-def list_presets() -> list[str]:
-    return sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
+def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: list[str]) -> list[str]:
+    seeds = ",".join(str(t.seed) for t in plan.pending)
+    return [sys.executable, "-m", "plls_bench", "-m", f"+experiment={plan.experiment}",
+            f"budget={profile}", f"seed={seeds}", f"runs_dir={runs_dir}", *overrides]
 
 
-def plan(profile: str, only: list[str] | None = None) -> list[PlannedPreset]:
-    """The presets of ``profile`` (all, or ``only``) and how many trials each runs."""
-    presets = list_presets()
-    unknown = sorted(set(only or []) - set(presets))
+def format_plan(plans: list[PresetPlan], jobs: int) -> str:
+    """The plan as a table, with estimated compute from measured throughput."""
+    rows = [f"{'preset':28s} {'runner':8s} {'to run':>9s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
+    total, unknown = 0.0, set()
+    for p in plans:
+        est = "n/a" if p.seconds is None else f"{p.seconds / 3600:.2f}"
+        trials = f"{len(p.pending)}/{len(p.trials)}"
+        rows.append(f"{p.experiment:28s} {p.runner:8s} {trials:>9s} {p.env_steps_per_trial:>15,d} {est:>10s}")
+        total += p.seconds or 0.0
+        unknown.update(p.missing_rates)
+    pending = sum(len(p.pending) for p in plans)
+    rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done)")
+    rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
+                f"about {total / 3600 / max(jobs, 1):.1f} h wall with {jobs} parallel job(s)")
     if unknown:
-        raise ConfigError(f"--only: unknown preset(s) {', '.join(unknown)}; known: {', '.join(presets)}")
-    planned = []
-    for name in only or presets:
-        cfg = compose([f"+experiment={name}", f"budget={profile}"])
-        planned.append(PlannedPreset(name, cfg.budget.trials, cfg.env.name))
-    return planned
+        rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
+                    f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
+    return "\n".join(rows)
 
 
-def multirun_command(item: PlannedPreset, profile: str, runs_dir: str) -> list[str]:
-    seeds = ",".join(str(k) for k in range(item.trials))
-    return [sys.executable, "-m", "plls_bench", "-m", f"+experiment={item.experiment}",
-            f"budget={profile}", f"seed={seeds}", f"runs_dir={runs_dir}"]
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="reproduce.sh", description=__doc__)
-    parser.add_argument("--profile", choices=BUDGET_NAMES, default="paper", help="compute profile")
-    parser.add_argument("--only", nargs="+", metavar="PRESET", help="run only these presets")
-    parser.add_argument("--runs", default="results/runs", help="root of run directories")
-    parser.add_argument("--out", default="results", help="where the results collector writes tables and figures")
-    parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
-    parser.add_argument("--dry-run", action="store_true", help="print the plan, run nothing")
-    args = parser.parse_args(argv)
-    try:
-        planned = plan(args.profile, args.only)
-    except ConfigError as err:
-        print(f"reproduce: {err}", file=sys.stderr)
-        return 2
-    for item in planned:
-        print(f"{item.experiment:32s} {item.env:12s} trials={item.trials}")
-    if args.dry_run:
-        return 0
+def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str]) -> list[str]:
+    """Launch each preset's pending trials; returns the presets whose multirun failed."""
     failed = []
-    for item in planned:
+    for plan in plans:
+        if not plan.pending:
+            print(f"[reproduce] {plan.experiment}: all {len(plan.trials)} trial(s) already done", flush=True)
+            continue
         start = time.perf_counter()
-        done = subprocess.run(multirun_command(item, args.profile, args.runs))
+        done = subprocess.run(multirun_command(plan, profile, runs_dir, overrides))
         status = "ok" if done.returncode == 0 else f"FAILED (exit {done.returncode})"
-        print(f"[reproduce] {item.experiment}: {status} in {time.perf_counter() - start:.0f}s", flush=True)
+        print(f"[reproduce] {plan.experiment}: {status}; ran {len(plan.pending)} trial(s), "
+              f"{len(plan.trials) - len(plan.pending)} already done, {time.perf_counter() - start:.0f}s", flush=True)
         if done.returncode != 0:
-            failed.append(item.experiment)
-    report = 0 if args.no_report else collect_results(args.runs, args.out)
-    if failed:
-        print(f"[reproduce] failed presets: {', '.join(failed)}", file=sys.stderr)
-        return 1
-    return report
+            failed.append(plan.experiment)
+    return failed
 
 
 def collect_results(runs_dir: str, out_dir: str) -> int:
@@ -85,6 +81,55 @@ def collect_results(runs_dir: str, out_dir: str) -> int:
     Path(runs_dir).mkdir(parents=True, exist_ok=True)  # a profile whose presets all failed
     print(f"[reproduce] results collector: {runs_dir} -> {out_dir}", flush=True)
     return report_main(["--runs", runs_dir, "--out", out_dir, "--no-progress"])
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="reproduce.sh", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--profile", choices=BUDGET_NAMES, default="paper", help="compute profile (default: paper)")
+    parser.add_argument("--launcher", choices=LAUNCHERS, default="local",
+                        help="local: one trial at a time; joblib: parallel local trials; slurm: submitit")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel trials with --launcher joblib")
+    parser.add_argument("--hydra", action="append", default=[], metavar="KEY=VALUE",
+                        help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
+    parser.add_argument("--only", nargs="+", metavar="PRESET", help="run only these presets")
+    parser.add_argument("--runs", default="results/runs", help="root of run directories")
+    parser.add_argument("--out", default="results", help="where the results collector writes tables and figures")
+    parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
+    parser.add_argument("--dry-run", action="store_true", help="print the plan and its estimated cost, run nothing")
+    args = parser.parse_args(argv)
+    if args.jobs < 1:
+        parser.error(f"--jobs must be >= 1, got {args.jobs}")
+    bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
+    if bad:
+        parser.error(f"--hydra takes hydra.* KEY=VALUE settings, got {', '.join(bad)}")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        plans = plan_profile(args.profile, args.runs, args.only)
+    except ConfigError as err:
+        print(f"reproduce: {err}", file=sys.stderr)
+        return 2
+    jobs = args.jobs if args.launcher == "joblib" else 1
+    print(f"[reproduce] profile={args.profile} launcher={args.launcher} runs={args.runs}")
+    print(format_plan(plans, jobs), flush=True)
+    if args.dry_run:
+        return 0
+    overrides = launcher_overrides(args.launcher, args.jobs, args.hydra)
+    try:
+        failed = run_plans(plans, args.profile, args.runs, overrides)
+    except KeyboardInterrupt:
+        print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "
+              "from its checkpoint; run the same command again to finish the rest", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    report = 0 if args.no_report else collect_results(args.runs, args.out)
+    if failed:
+        print(f"[reproduce] failed presets: {', '.join(failed)} (see their status.json and run.log)", file=sys.stderr)
+        return 1
+    return report
 
 
 if __name__ == "__main__":

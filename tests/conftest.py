@@ -22,6 +22,18 @@ def runs_dir(tmp_path: Path) -> Path:
     return tmp_path / "runs"
 
 
+@pytest.fixture
+def one_torch_thread():
+    """torch on one thread for the test: small networks gain nothing from threads, and on a busy
+    2-core machine torch's threads spin-wait (a 10x slowdown measured here)."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
 def compose_preset(experiment: str | None, runs_dir: Path, *overrides: str) -> Config:
     """The shipped preset at smoke budget (unless overridden), writing under ``runs_dir``."""
     base = [f"+experiment={experiment}"] if experiment else []

@@ -27,8 +27,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"+filmstrip={name}", f"env={name}"]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name == "ppo" else []
-        extra += ["env=mountaincar"] if group == "algo" else []
-        extra += ["env=cheetah", "runner=dbc"] if name == "dbc" else []
+        extra += ["env=mountaincar"] if group == "algo" and not name.startswith("dbc") else []
+        extra += ["env=cheetah", "runner=dbc"] if name.startswith("dbc") else []
         extra += ["env=carracing"] if group == "repr/state" and name == "vae" else []  # V_s needs frames
         return [f"{group}={name}", *extra]
     if group.endswith("per_env"):  # <choice>_<env> or <env>_<profile> (budget)
@@ -39,8 +39,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         runner = [f"runner={first}"] if parent == "algo" else []
         return [f"{parent}={first}", f"env={second}", *runner]
     if group == "budget/per_algo":  # <algo>_<env>_<profile>
-        algo, env, profile = name.split("_")
-        return [f"algo={algo}", f"runner={algo}", f"env={env}", f"budget={profile}"]
+        algo, env, profile = name.rsplit("_", 2)  # the algo choice may hold "_" (dbc_readme)
+        return [f"algo={algo}", f"runner={algo.split('_')[0]}", f"env={env}", f"budget={profile}"]
     raise AssertionError(f"no composition rule for {rel}: add one to tests/test_config.py")
 
 

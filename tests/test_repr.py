@@ -81,13 +81,27 @@ def test_cheetah_va_preset(runs_dir: Path) -> None:
 
 
 def test_a_second_trial_reuses_the_artifact_and_still_gets_every_metric(runs_dir: Path) -> None:
-    first = run_preset("mountaincar_va", runs_dir)
-    second = run_preset("mountaincar_va", runs_dir, "seed=1")
+    shared = "repr.per_trial_training=false"  # the default outside the V_a presets (PL-LS runs)
+    first = run_preset("mountaincar_va", runs_dir, shared)
+    second = run_preset("mountaincar_va", runs_dir, shared, "seed=1")
     tests = [read_json(d / "metrics" / "repr_test.json")["action"] for d in (first, second)]
     assert tests[0].pop("built_by_this_run") and not tests[1].pop("built_by_this_run")
     assert tests[0] == tests[1]
     for name in ("metrics/repr_train.jsonl", "samples/action_reconstructions.npz"):
         assert (first / name).read_bytes() == (second / name).read_bytes()
+
+
+def test_va_preset_trains_one_model_per_trial_on_the_shared_data(runs_dir: Path) -> None:
+    """The paper's V_a test MSE +- is over repeated trainings on one dataset; trial 0's model is
+    the one every PL-LS run uses."""
+    from plls_bench.data import dataset_key
+    from plls_bench.repr.store import repr_key
+
+    trials = [compose_preset("mountaincar_va", runs_dir, f"seed={k}") for k in range(3)]
+    assert len({str(dataset_key(c)) for c in trials}) == 1
+    assert len({str(repr_key(c, "action")) for c in trials}) == 3
+    plls = compose_preset("mountaincar_plls_ppo", runs_dir, "seed=4")
+    assert repr_key(plls, "action") == repr_key(trials[0], "action")
 
 
 def test_smoke_va_reconstructs_held_out_actions_better_than_their_mean(runs_dir: Path) -> None:

@@ -114,8 +114,16 @@ def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
     return cfg, lambda obs: model.predict(obs, deterministic=True)[0], found[0].name
 
 
+def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
+    from plls_bench.train.dbc import to_env_action
+    from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
+
+    cfg, agent, space = load_trained_agent(run_dir, device)
+    return cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space), Path(CHECKPOINT).name
+
+
 # runner -> (run dir, device) -> (typed config, deterministic policy, checkpoint name)
-POLICIES: dict[str, Callable[[Path, str], tuple[Config, Act, str]]] = {"ppo": _ppo_policy}
+POLICIES: dict[str, Callable[[Path, str], tuple[Config, Act, str]]] = {"ppo": _ppo_policy, "dbc": _dbc_policy}
 
 
 def filmstrip_config(env: str, overrides: list[str]) -> FilmstripConfig:

@@ -26,10 +26,12 @@ def resolve_device(name: str) -> torch.device:
 
 
 def training_seed(cfg: Config, which: str) -> int:
-    """Seed of a model's initialisation, shuffling and noise: derived from the data stream, so a
-    representation is fixed by (task, repr config, data seed) and shared by all trials."""
+    """Seed of a model's initialisation, shuffling and noise. Derived from the data stream, so a
+    representation is fixed by (task, repr config, data seed) and shared by all trials; with
+    ``repr.per_trial_training`` also from the trial seed (trial 0 gets the shared model's seed)."""
     data_seed = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).data
-    return int(np.random.SeedSequence([data_seed, _STREAMS[which]]).generate_state(1)[0])
+    model_trial = cfg.seed if cfg.repr.per_trial_training else 0
+    return int(np.random.SeedSequence([data_seed, _STREAMS[which], model_trial]).generate_state(1)[0])
 
 
 def action_dim(cfg: Config) -> int:

@@ -55,8 +55,10 @@ def repr_key(cfg: Config, which: str) -> dict[str, Any]:
     from plls_bench.data import dataset_key
 
     settings = {k: v for k, v in asdict(model_config(cfg, which)).items() if k not in _NOT_IN_KEY}
+    from plls_bench.repr import training_seed
+
     return {"format": REPR_FORMAT, "model": which, "data": dataset_key(cfg), "repr": settings,
-            "epochs": cfg.budget.epochs_for(which)}
+            "epochs": cfg.budget.epochs_for(which), "training_seed": training_seed(cfg, which)}
 
 
 def sha256(path: Path) -> str:

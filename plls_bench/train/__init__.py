@@ -1,1 +1,1 @@
-"""Policy learning on stable-baselines3: the ``ppo`` runner, the paper's networks, checkpoints."""
+"""Policy learning: the ``ppo`` runner on stable-baselines3 (the paper's networks, checkpoints) and the ``dbc`` runner."""

@@ -1,0 +1,12 @@
+"""Deep Bisimulation for Control (Zhang et al., ICLR 2021), written from the paper and the
+authors' reference code (facebookresearch/deep_bisim4control), plus an exact bisimulation-metric
+oracle for small finite MDPs (:mod:`baselines.dbc.oracle`, used by the tests).
+
+Modules: ``encoder`` (conv/MLP trunk -> Linear -> LayerNorm), ``models`` (actor, twin critic,
+transition model, reward decoder), ``bisim`` (the representation losses), ``agent`` (updates and
+checkpoint state), ``replay`` (frames stored once, stacks rebuilt on sampling), ``oracle``.
+"""
+from baselines.dbc.agent import Batch, DBCAgent
+from baselines.dbc.replay import FrameReplay
+
+__all__ = ["Batch", "DBCAgent", "FrameReplay"]

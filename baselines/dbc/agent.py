@@ -1,0 +1,170 @@
+"""The DBC agent: SAC on a bisimulation-shaped latent (reference: agent/bisim_agent.py).
+
+One :meth:`DBCAgent.update` per agent step, in the reference's order: critic (which also trains
+the critic's encoder), then the encoder with the bisimulation, transition and reward losses, then
+(every ``actor_update_freq`` steps) actor and temperature, then (every
+``critic_target_update_freq`` steps) the soft target update. The actor shares the critic's conv
+trunk but never trains it; its own Linear + LayerNorm head is trained by the actor loss.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+from baselines.dbc.bisim import bisimulation_loss, reward_loss, transition_loss
+from baselines.dbc.encoder import Encoder, make_trunk, weight_init
+from baselines.dbc.models import Actor, Critic, TransitionModel, reward_decoder
+from plls_bench.config import DBCConfig
+
+
+@dataclass
+class Batch:
+    """A sampled minibatch: obs/next_obs ``(B, *O)`` (uint8 pixels or float vectors), action
+    ``(B, A)`` in [-1, 1], reward and not_done ``(B, 1)`` float32."""
+
+    obs: torch.Tensor
+    action: torch.Tensor
+    reward: torch.Tensor
+    next_obs: torch.Tensor
+    not_done: torch.Tensor
+
+
+def soft_update(net: nn.Module, target: nn.Module, tau: float) -> None:
+    with torch.no_grad():
+        for param, target_param in zip(net.parameters(), target.parameters()):
+            target_param.lerp_(param, tau)
+
+
+class DBCAgent:
+    """Actor, twin critic (+ target), transition model and reward decoder, with their optimisers."""
+
+    def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: DBCConfig,
+                 device: torch.device | str = "cpu") -> None:
+        self.cfg, self.device = cfg, torch.device(device)
+        trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim)
+        self.critic = Critic(Encoder(trunk, cfg.encoder_feature_dim), action_dim, cfg.hidden_dim)
+        # the actor shares the critic's trunk (the reference ties the conv weights)
+        self.actor = Actor(Encoder(trunk, cfg.encoder_feature_dim), action_dim, cfg.hidden_dim,
+                           cfg.actor_log_std_min, cfg.actor_log_std_max)
+        self.transition = TransitionModel(cfg.encoder_feature_dim, action_dim, cfg.model_hidden_dim,
+                                          cfg.transition_model == "probabilistic", cfg.sigma_min, cfg.sigma_max)
+        self.reward_decoder = reward_decoder(cfg.encoder_feature_dim, cfg.model_hidden_dim)
+        for module in (self.critic, self.actor):  # the reference leaves the models at torch's init
+            module.apply(weight_init)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)  # Polyak-averaged only
+        for module in self.modules().values():
+            module.to(self.device)
+        self.log_alpha = torch.tensor(math.log(cfg.init_temperature), device=self.device, requires_grad=True)
+        self.target_entropy = -float(action_dim)  # SAC's heuristic -|A|, as the reference
+        self.optimizers = self._make_optimizers()
+
+    def _make_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        cfg, actor = self.cfg, self.actor
+        actor_params = [*actor.trunk.parameters(), *actor.encoder.fc.parameters(), *actor.encoder.ln.parameters()]
+        model_params = [*self.transition.parameters(), *self.reward_decoder.parameters()]
+        return {
+            "actor": torch.optim.Adam(actor_params, lr=cfg.actor_lr, betas=(cfg.actor_beta, 0.999)),
+            "critic": torch.optim.Adam(self.critic.parameters(), lr=cfg.critic_lr, betas=(cfg.critic_beta, 0.999)),
+            "alpha": torch.optim.Adam([self.log_alpha], lr=cfg.alpha_lr, betas=(cfg.alpha_beta, 0.999)),
+            "encoder": torch.optim.Adam(self.critic.encoder.parameters(), lr=cfg.encoder_lr),
+            "decoder": torch.optim.Adam(model_params, lr=cfg.decoder_lr, weight_decay=cfg.decoder_weight_lambda),
+        }
+
+    def modules(self) -> dict[str, nn.Module]:
+        return {"actor": self.actor, "critic": self.critic, "critic_target": self.critic_target,
+                "transition_model": self.transition, "reward_decoder": self.reward_decoder}
+
+    @property
+    def alpha(self) -> torch.Tensor:
+        return self.log_alpha.exp()
+
+    # ------------------------------------------------------------------ acting
+    @torch.inference_mode()
+    def act(self, obs: np.ndarray, deterministic: bool) -> np.ndarray:
+        """Actions ``(N, A)`` in [-1, 1] for observations ``(N, *O)``: ``tanh(mu)`` or a sample."""
+        features = self.critic.encoder.features(torch.as_tensor(obs, device=self.device))
+        mu, pi, _, _ = self.actor(features, sample=not deterministic)
+        return (mu if deterministic else pi).cpu().numpy()
+
+    # ------------------------------------------------------------------ learning
+    def update(self, batch: Batch, step: int) -> dict[str, float]:
+        """One update at agent step ``step``; returns scalar metrics (``loss/...``, ``train/...``).
+
+        As in the reference, the actor and target schedules key on the agent step, so the burst of
+        ``init_steps`` updates at the first learning step all update the actor and targets."""
+        metrics = {"loss/critic": self.update_critic(batch), **self.update_representation(batch)}
+        if step % self.cfg.actor_update_freq == 0:
+            metrics.update(self.update_actor_and_alpha(batch.obs))
+        if step % self.cfg.critic_target_update_freq == 0:
+            soft_update(self.critic.q1, self.critic_target.q1, self.cfg.critic_tau)
+            soft_update(self.critic.q2, self.critic_target.q2, self.cfg.critic_tau)
+            soft_update(self.critic.encoder, self.critic_target.encoder, self.cfg.encoder_tau)
+        metrics["train/batch_reward"] = float(batch.reward.mean())
+        return metrics
+
+    def update_critic(self, batch: Batch) -> float:
+        with torch.no_grad():
+            _, next_action, next_log_pi, _ = self.actor(self.critic.encoder.features(batch.next_obs))
+            target_q1, target_q2 = self.critic_target(self.critic_target.encoder.features(batch.next_obs), next_action)
+            target_v = torch.min(target_q1, target_q2) - self.alpha * next_log_pi
+            target_q = batch.reward + batch.not_done * self.cfg.discount * target_v
+        q1, q2 = self.critic(self.critic.encoder.features(batch.obs), batch.action)
+        loss = F.mse_loss(q1, target_q) + F.mse_loss(q2, target_q)
+        self._step("critic", loss)
+        return loss.item()
+
+    def update_representation(self, batch: Batch) -> dict[str, float]:
+        """Encoder, transition model and reward decoder: ``bisim_coef * L_bisim + L_trans + L_reward``."""
+        z = self.critic.encoder(batch.obs)
+        with torch.no_grad():
+            next_z = self.critic.encoder(batch.next_obs)
+        l_trans = transition_loss(z, batch.action, next_z, self.transition)
+        l_reward = reward_loss(z, batch.action, batch.reward, self.transition, self.reward_decoder)
+        l_bisim = bisimulation_loss(z, batch.action, batch.reward, self.transition, self.cfg.discount)
+        total = self.cfg.bisim_coef * l_bisim + l_trans + l_reward
+        self._step(("encoder", "decoder"), total)
+        return {"loss/encoder_bisim": l_bisim.item(), "loss/transition": l_trans.item(),
+                "loss/reward": l_reward.item()}
+
+    def update_actor_and_alpha(self, obs: torch.Tensor) -> dict[str, float]:
+        with torch.no_grad():  # the actor never trains the shared trunk (detach_encoder in the reference)
+            features = self.critic.encoder.features(obs)
+        _, pi, log_pi, log_std = self.actor(features, detach_trunk=True)
+        q1, q2 = self.critic(features, pi, detach_trunk=True)
+        actor_loss = (self.alpha.detach() * log_pi - torch.min(q1, q2)).mean()
+        self._step("actor", actor_loss)
+        alpha_loss = (self.alpha * (-log_pi - self.target_entropy).detach()).mean()
+        self._step("alpha", alpha_loss)
+        entropy = 0.5 * log_std.shape[1] * (1.0 + math.log(2 * math.pi)) + log_std.sum(dim=-1)
+        return {"loss/actor": actor_loss.item(), "loss/alpha": alpha_loss.item(),
+                "train/alpha": self.alpha.item(), "train/entropy": entropy.mean().item()}
+
+    def _step(self, names: str | tuple[str, ...], loss: torch.Tensor) -> None:
+        """Zero the named optimisers' gradients, backpropagate ``loss`` and step them."""
+        names = (names,) if isinstance(names, str) else names
+        for name in names:
+            self.optimizers[name].zero_grad(set_to_none=True)
+        loss.backward()
+        for name in names:
+            self.optimizers[name].step()
+
+    # ------------------------------------------------------------------ checkpoints
+    def state_dict(self) -> dict[str, Any]:
+        return {"modules": {name: m.state_dict() for name, m in self.modules().items()},
+                "log_alpha": self.log_alpha.detach().clone(),
+                "optimizers": {name: opt.state_dict() for name, opt in self.optimizers.items()}}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        for name, module in self.modules().items():
+            module.load_state_dict(state["modules"][name])
+        with torch.no_grad():
+            self.log_alpha.copy_(state["log_alpha"])
+        for name, opt in self.optimizers.items():
+            opt.load_state_dict(state["optimizers"][name])

@@ -1,0 +1,104 @@
+"""DBC update throughput (updates per second) and acting throughput (env steps per second).
+
+    nice -n 10 .venv/bin/python bench/dbc_throughput.py                      # cheetah_dbc, budget=quick
+    nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 2 --updates 20
+
+The env and agent are built as the ``dbc`` runner builds them (``budget=quick``: the reference
+launcher's batch size 128 and hidden size 1024). Acting: ``--steps`` agent steps of the training
+VecEnv (render, frame stack, stochastic policy forward, replay insert; no updates), reported in
+env steps (frames, action repeat 4) per second. Updates: median time of ``--updates`` full DBC
+updates (critic, bisimulation/transition/reward, actor and temperature on even steps, targets)
+on minibatches sampled from the replay filled by the acting phase. Prints the command and the
+machine, and rewrites this script's section of ``BENCHMARKS.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import shlex
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from bench.benchmarks_md import machine, write_section  # noqa: E402
+from plls_bench.composition import compose  # noqa: E402
+from plls_bench.runs import Run  # noqa: E402
+from plls_bench.seeding import seed_everything  # noqa: E402
+from plls_bench.train.dbc import DBCTrainer  # noqa: E402
+
+SECTION = "dbc_throughput"
+
+
+def measure(preset: str, budget: str, threads: int, steps: int, updates: int, runs_dir: str) -> dict[str, float]:
+    cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false"])
+    torch.set_num_threads(threads)
+    seed_everything(0)
+    trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset))  # no checkpoint there: fresh
+    try:
+        obs = trainer.train_env.reset()
+        trainer.replay.start_episode(obs[0])
+        trainer.progress.agent_steps = cfg.algo.dbc.init_steps  # act with the policy, as after init
+        start = time.perf_counter()
+        for _ in range(steps):
+            obs, _, _ = trainer.step(obs, updates=False)
+        acting = time.perf_counter() - start
+        times, cpu = [], []
+        for i in range(updates + 2):  # two warm-up updates
+            start, start_cpu = time.perf_counter(), time.process_time()
+            trainer.agent.update(trainer.replay.sample(cfg.algo.dbc.batch_size, trainer.rng, trainer.device), i)
+            times.append(time.perf_counter() - start)
+            cpu.append(time.process_time() - start_cpu)
+        per_update, cpu_per_update = statistics.median(times[2:]), statistics.median(cpu[2:])
+    finally:
+        trainer.train_env.close()
+        trainer.eval_env.close()
+    return {"env_sps": steps * cfg.env.action_repeat / acting, "update_s": per_update, "ups": 1.0 / per_update,
+            "cpu_s": cpu_per_update,
+            "batch": cfg.algo.dbc.batch_size, "bytes": trainer.replay.bytes_per_slot(),
+            "reference_bytes": trainer.replay.reference_bytes_per_transition()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--presets", nargs="+", default=["cheetah_dbc"])
+    parser.add_argument("--budget", default="quick", help="budget whose DBC settings are used")
+    parser.add_argument("--threads", nargs="+", type=int, default=[1, 2], help="torch intra-op threads")
+    parser.add_argument("--steps", type=int, default=100, help="timed agent steps of acting")
+    parser.add_argument("--updates", type=int, default=10, help="timed updates (after 2 warm-up)")
+    parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    args = parser.parse_args(argv)
+    command = "nice -n 10 .venv/bin/python bench/dbc_throughput.py " + shlex.join(sys.argv[1:] if argv is None else argv)
+    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    rows = []
+    for preset in args.presets:
+        for threads in args.threads:
+            m = measure(preset, args.budget, threads, args.steps, args.updates, args.runs)
+            rows.append(f"| `{preset}` | {threads} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | {m['cpu_s']:.2f} | "
+                        f"**{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
+            print(rows[-1], flush=True)
+    after = machine()
+    print(f"machine (after): {after}")
+    text = "\n".join([
+        f"## DBC updates and env steps per second (`bench/dbc_throughput.py`, budget={args.budget})", "",
+        f"Command: `{command}`  ", f"Machine: {after}  ",
+        f"Acting: {args.steps} agent steps (render, stochastic policy, replay insert; no updates), in env "
+        f"steps (frames) per second. Updates: median of {args.updates} full DBC updates after 2 warm-up. "
+        "CPU s / update is the process time (all threads), less sensitive than wall time to other "
+        "processes on a shared machine. Replay bytes per transition: this suite's frame replay / the "
+        "reference's layout.", "",
+        "| preset | torch threads | acting env steps/s | batch | s / update | CPU s / update | updates/s "
+        "| replay bytes |", "|---|---|---|---|---|---|---|---|", *rows])
+    if not args.no_write:
+        write_section(SECTION, text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

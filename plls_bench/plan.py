@@ -1,0 +1,153 @@
+"""What a profile runs and what it costs, without running anything.
+
+Every preset of a profile is composed exactly as ``python -m plls_bench`` will compose it, so the
+run dirs and config hashes here are the ones the runner checks: a trial counted as done here is
+one the runner will skip. Cost estimates use throughput measured on a reference machine
+(``bench/throughput.json``, written by ``bench/throughput.py``); shared artifacts (datasets,
+representations) are costed once, by the first preset that needs them.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from plls_bench.artifacts import is_built
+from plls_bench.composition import CONF_DIR, compose
+from plls_bench.config import Config, ConfigError
+from plls_bench.runs import Run, config_hash, run_dir_path, stable_hash, variant_name
+
+THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
+RUNNER_ORDER = ("collect", "repr", "study", "ppo", "dbc")  # artifacts before their consumers
+
+
+@dataclass(frozen=True)
+class Trial:
+    seed: int
+    run_dir: Path
+    done: bool                                    # status.json says done for this exact config
+    cfg: Config = field(repr=False, compare=False)  # the config the runner will get
+
+
+@dataclass
+class PresetPlan:
+    experiment: str
+    env: str
+    runner: str
+    trials: list[Trial]
+    env_steps_per_trial: int               # policy-learning env steps (0 for non-RL presets)
+    seconds: float | None = None           # estimated compute of the pending trials; None: unknown
+    missing_rates: list[str] = field(default_factory=list)
+
+    @property
+    def pending(self) -> list[Trial]:
+        return [t for t in self.trials if not t.done]
+
+
+def list_presets() -> list[str]:
+    return sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
+
+
+def load_rates(path: Path = THROUGHPUT_FILE) -> dict[str, float]:
+    """Measured throughputs by key (``collect/<env>``, ``repr_<which>/<env>``, ``train/<preset>``,
+    ``eval/<preset>``, ``study/<preset>``); empty when never measured."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return {key: float(entry["value"]) for key, entry in data.get("rates", {}).items()}
+
+
+def preset_config(experiment: str, profile: str, runs_dir: str) -> Config:
+    return compose([f"+experiment={experiment}", f"budget={profile}", f"runs_dir={runs_dir}"])
+
+
+def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
+                 rates: dict[str, float] | None = None) -> list[PresetPlan]:
+    """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials."""
+    presets = list_presets()
+    unknown = sorted(set(only or []) - set(presets))
+    if unknown:
+        raise ConfigError(f"--only: unknown preset(s) {', '.join(unknown)}; known: {', '.join(presets)}")
+    rates = load_rates() if rates is None else rates
+    plans = [_plan_preset(name, profile, runs_dir) for name in only or presets]
+    plans.sort(key=lambda p: (RUNNER_ORDER.index(p.runner), p.experiment))
+    costed: set[str] = set()
+    for plan in plans:
+        plan.seconds, plan.missing_rates = _estimate(plan, rates, costed)
+    return plans
+
+
+def _plan_preset(experiment: str, profile: str, runs_dir: str) -> PresetPlan:
+    first = preset_config(experiment, profile, runs_dir)
+    trials = []
+    for seed in range(first.budget.trials):
+        # the seed is a plain field that no other value interpolates: replace() equals composing seed=k
+        cfg = dataclasses.replace(first, seed=seed)
+        path = run_dir_path(runs_dir, experiment, variant_name(cfg.variant), seed)
+        trials.append(Trial(seed, path, Run(path).is_done(config_hash(cfg)), cfg))
+    rl = first.runner in ("ppo", "dbc")
+    return PresetPlan(experiment, first.env.name, first.runner, trials,
+                      first.budget.train_env_steps if rl else 0)
+
+
+# --------------------------------------------------------------------------- cost estimates
+def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tuple[float | None, list[str]]:
+    """Seconds of compute for the plan's pending trials (shared artifacts counted once)."""
+    total, missing = 0.0, []
+    for trial in plan.pending:
+        for key, amount in _workload(trial.cfg, costed):
+            if key not in rates:
+                missing.append(key)
+            else:
+                total += amount / rates[key]
+    return (None if missing else total), sorted(set(missing))
+
+
+def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
+    """(rate key, amount) pairs: env steps, training samples, or runs (for fixed-cost studies)."""
+    from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
+
+    env, budget, work = cfg.env.name, cfg.budget, []
+    needs_data = cfg.runner in ("collect", "repr", "study") or "vae" in (cfg.repr.state.kind, cfg.repr.action.kind)
+    data_steps = budget.data_episodes * budget.data_steps_per_episode
+    if needs_data and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
+        work.append((f"collect/{env}", data_steps))
+    for which in ("state", "action"):
+        kind = f"repr_{which}"
+        if getattr(cfg.repr, which).kind == "vae" and _first(costed, cfg.runs_dir, kind, _repr_identity(cfg, which)):
+            samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
+            work.append((f"{kind}/{env}", samples))
+    if cfg.runner in ("ppo", "dbc"):
+        work.append((f"train/{cfg.experiment}", budget.train_env_steps))
+        work.append((f"eval/{cfg.experiment}", _eval_env_steps(cfg)))
+    if cfg.runner == "study":
+        work.append((f"study/{cfg.experiment}", 1))
+    return work
+
+
+def _eval_env_steps(cfg: Config) -> int:
+    """Upper bound: every evaluation runs full-length test episodes (plus one at step 0)."""
+    budget = cfg.budget
+    episode = budget.eval_max_steps * cfg.env.action_repeat if budget.eval_max_steps else cfg.env.max_episode_steps
+    evaluations = math.ceil(budget.train_env_steps / budget.eval_every_env_steps) + 1
+    return evaluations * budget.eval_episodes * episode
+
+
+def _repr_identity(cfg: Config, which: str) -> dict[str, Any]:
+    from plls_bench.repr.store import repr_key  # lazy: imports torch
+
+    return repr_key(cfg, which)
+
+
+def _first(costed: set[str], runs_dir: str, kind: str, key: dict[str, Any]) -> bool:
+    """True the first time this plan meets an artifact that is not built yet (it is built once,
+    then shared)."""
+    ident = f"{kind}:{stable_hash(key)}"
+    if ident in costed or is_built(runs_dir, kind, key):
+        return False
+    costed.add(ident)
+    return True

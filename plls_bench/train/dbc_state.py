@@ -1,0 +1,122 @@
+"""What a DBC run needs to resume after a kill: agent, optimisers, RNGs, counters and the replay.
+
+A checkpoint is ``checkpoints/dbc.pt`` (agent, optimisers, RNG states, :class:`Progress`; a
+readable copy of the progress in ``checkpoints/progress.json``) plus
+``checkpoints/replay/chunk_<start>_<end>.npz``: each checkpoint appends only the replay slots
+written since the previous one, so saving stays cheap as the buffer grows. Chunks are written
+(atomically) before ``dbc.pt``; on resume, chunks past the checkpoint's slot count (from a
+checkpoint interrupted half-way) are deleted, and chunks the ring buffer has since overwritten
+are dropped as they become obsolete.
+"""
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from gymnasium.spaces import Box
+
+from baselines.dbc import DBCAgent, FrameReplay
+from plls_bench.artifacts import load_npz, save_npz
+from plls_bench.composition import config_from_dict
+from plls_bench.config import Config
+from plls_bench.runs import Run, read_json
+
+CHECKPOINT = "checkpoints/dbc.pt"
+PROGRESS = "checkpoints/progress.json"
+REPLAY_DIR = "checkpoints/replay"
+_CHUNK = re.compile(r"chunk_(\d+)_(\d+)\.npz")
+
+
+@dataclass
+class Progress:
+    """Counters of a run; ``wall_s`` accumulates over restarts."""
+
+    agent_steps: int = 0
+    env_steps: int = 0
+    episodes: int = 0
+    evaluations: int = 0
+    wall_s: float = 0.0
+    replay_written: int = 0  # replay slots covered by saved chunks
+
+
+def _chunks(run: Run) -> list[tuple[int, int, Path]]:
+    found = []
+    for path in (run.path / REPLAY_DIR).glob("chunk_*.npz"):
+        match = _CHUNK.fullmatch(path.name)
+        if match:
+            found.append((int(match[1]), int(match[2]), path))
+    return sorted(found)
+
+
+def save_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay, progress: Progress,
+                    rng: np.random.Generator) -> None:
+    """Append the new replay slots as a chunk, then write ``dbc.pt`` atomically."""
+    start, end = max(progress.replay_written, replay.oldest), replay.n_written
+    if end > start:
+        save_npz(run.path / REPLAY_DIR / f"chunk_{start:012d}_{end:012d}.npz", replay.export(start, end))
+    progress.replay_written = end
+    state = {"agent": agent.state_dict(), "progress": asdict(progress),
+             "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()}
+    buffer = io.BytesIO()
+    torch.save(state, buffer)
+    run.write_bytes(CHECKPOINT, buffer.getvalue())
+    run.write_json(PROGRESS, asdict(progress))  # a readable copy, written after the checkpoint
+    for _, chunk_end, path in _chunks(run):  # slots the ring buffer no longer holds
+        if chunk_end <= replay.oldest:
+            path.unlink(missing_ok=True)
+
+
+def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
+                    rng: np.random.Generator) -> Progress | None:
+    """Restore the last checkpoint into ``agent``, ``replay`` and ``rng``; None when there is none
+    (then stale replay chunks of an earlier, uncheckpointed attempt are removed)."""
+    path = run.path / CHECKPOINT
+    if not path.exists():
+        for _, _, chunk in _chunks(run):
+            chunk.unlink()
+        return None
+    state: dict[str, Any] = torch.load(path, map_location=agent.device, weights_only=True)
+    progress = Progress(**state["progress"])
+    agent.load_state_dict(state["agent"])
+    rng.bit_generator.state = state["rng"]
+    torch.set_rng_state(state["torch_rng"])
+    for start, end, chunk in _chunks(run):
+        if end > progress.replay_written:  # written by a checkpoint that never completed
+            chunk.unlink()
+        else:
+            replay.load(start, load_npz(chunk))
+    if replay.n_written != progress.replay_written:
+        raise RuntimeError(f"replay chunks in {run.path / REPLAY_DIR} hold {replay.n_written} slots, "
+                           f"the checkpoint expects {progress.replay_written}")
+    return progress
+
+
+def load_trained_agent(run_dir: Path, device: str = "cpu") -> tuple[Config, DBCAgent, Box]:
+    """A DBC run's typed config, its last checkpointed agent (no replay, no optimiser use) and the
+    box its actions map to (V_a's latent box with ``repr/action=vae``), for filmstrips."""
+    from plls_bench.envs import make_vec_env
+    from plls_bench.latent import wrap_latent
+    from plls_bench.repr import resolve_device
+
+    record = read_json(run_dir / "config.json")
+    if record is None:
+        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    path = run_dir / CHECKPOINT
+    if not path.exists():
+        raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
+    cfg = config_from_dict(record["config"])
+    assert cfg.algo.dbc is not None
+    venv = wrap_latent(make_vec_env(cfg.env, 1, 0), cfg)  # the spaces the agent saw in training
+    try:
+        obs_shape, space = venv.observation_space.shape, venv.action_space
+    finally:
+        venv.close()
+    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, resolve_device(device))
+    state = torch.load(path, map_location=agent.device, weights_only=True)
+    agent.load_state_dict(state["agent"])
+    return cfg, agent, space

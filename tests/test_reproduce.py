@@ -1,0 +1,118 @@
+"""reproduce.sh's orchestration: the plan, done-trial accounting, and interrupted runs finishing."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from plls_bench.plan import list_presets, plan_profile
+from plls_bench.runner import execute
+from tests.conftest import REPO_ROOT, compose_preset
+
+MC = ["mountaincar_data", "mountaincar_va", "mountaincar_ppo"]
+
+
+def reproduce(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "plls_bench.reproduce", *args], cwd=REPO_ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def start_reproduce(*args: str) -> subprocess.Popen[str]:
+    """reproduce in its own process group, as a terminal would run it (Ctrl-C reaches every job)."""
+    return subprocess.Popen([sys.executable, "-m", "plls_bench.reproduce", *args], cwd=REPO_ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+
+
+def wait_for_state(status: Path, state: str, timeout: float = 300) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if json.loads(status.read_text())["state"] == state:
+                return
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.05)
+    raise AssertionError(f"{status} never reached {state!r}")
+
+
+def test_dry_run_prints_the_whole_paper_plan_and_runs_nothing(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    done = reproduce("--profile", "paper", "--dry-run", "--runs", str(runs))
+    assert done.returncode == 0, done.stderr
+    for preset in list_presets():
+        assert preset in done.stdout
+    assert "CPU-hours" in done.stdout and "trials to run" in done.stdout
+    assert not runs.exists()
+
+
+def test_plan_counts_done_trials_and_orders_artifacts_first(runs_dir: Path) -> None:
+    cfg = compose_preset("mountaincar_data", runs_dir)
+    execute(cfg, runs_dir / "mountaincar_data" / "default" / "seed=0")
+    plans = plan_profile("smoke", str(runs_dir), only=list(reversed(MC)), rates={})
+    assert [p.experiment for p in plans] == MC  # data, then V_a, then the policy that uses them
+    assert [len(p.pending) for p in plans] == [0, 1, 1]
+    changed = plan_profile("quick", str(runs_dir), only=["mountaincar_data"], rates={})
+    assert len(changed[0].pending) == 1, "a done run with another config is not done"
+
+
+def test_unknown_preset_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    done = reproduce("--profile", "smoke", "--only", "nope", "--runs", str(tmp_path / "r"))
+    assert done.returncode == 2 and "nope" in done.stderr
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.slow
+def test_sigint_then_rerun_finishes_without_redoing_finished_runs(tmp_path: Path) -> None:
+    runs, args = tmp_path / "runs", ["--profile", "smoke", "--only", *MC, "--no-report"]
+    proc = start_reproduce(*args, "--runs", str(runs))
+    wait_for_state(runs / "mountaincar_va" / "default" / "seed=0" / "status.json", "running")
+    os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: reproduce and the running job both get it
+    output, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 130, output
+    assert "interrupted" in output
+    again = reproduce(*args, "--runs", str(runs))
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert "mountaincar_data: all 1 trial(s) already done" in again.stdout
+    assert "mountaincar_va: ok; ran 1 trial(s)" in again.stdout
+    third = reproduce(*args, "--runs", str(runs))
+    assert third.stdout.count("trial(s) already done\n") == len(MC), third.stdout
+
+
+@pytest.mark.slow
+def test_sigkill_of_a_worker_then_rerun_completes(tmp_path: Path) -> None:
+    runs, args = tmp_path / "runs", ["--profile", "smoke", "--only", *MC, "--no-report"]
+    proc = start_reproduce(*args, "--runs", str(runs))
+    status = runs / "mountaincar_ppo" / "default" / "seed=0" / "status.json"
+    wait_for_state(status, "running")
+    worker = _job_pid("+experiment=mountaincar_ppo", str(runs))
+    os.kill(worker, signal.SIGKILL)
+    output, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 1 and "failed presets: mountaincar_ppo" in output, output
+    again = reproduce(*args, "--runs", str(runs))
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert again.stdout.count("trial(s) already done\n") == 2  # data and V_a are not redone
+    assert "mountaincar_ppo: ok; ran 1 trial(s), 0 already done" in again.stdout
+    assert json.loads(status.read_text())["state"] == "done"
+    starts = json.loads((status.parent / "provenance.json").read_text())["starts"]
+    assert len(starts) == 2, "the killed trial resumed in its own run dir"
+
+
+def _job_pid(*needles: str) -> int:
+    """PID of the ``python -m plls_bench`` job whose command line holds every needle."""
+    for proc_dir in Path("/proc").iterdir():
+        if not proc_dir.name.isdigit():
+            continue
+        try:
+            cmdline = (proc_dir / "cmdline").read_bytes().decode(errors="replace").split("\0")
+        except OSError:
+            continue
+        if "plls_bench" in cmdline and all(any(n in part for part in cmdline) for n in needles):
+            return int(proc_dir.name)
+    raise AssertionError(f"no job with {needles}")
