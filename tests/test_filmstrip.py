@@ -60,22 +60,26 @@ def film(*args: str) -> subprocess.CompletedProcess[str]:
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("preset", "cap", "interval", "size"), [("mountaincar_plls_ppo", 0, 4, (200, 300)),
-                                                                 ("carracing_plls_ppo", 100, 48, (200, 300))])
-def test_cli_films_a_ppo_run(preset: str, cap: int, interval: int, size: tuple[int, int], tmp_path: Path) -> None:
-    """Figs 11 and 19 from smoke PPO runs (CarRacing capped at 100 steps), as the README's table says."""
+                                                                 ("carracing_plls_ppo", 100, 48, (200, 300)),
+                                                                 ("cheetah_plls_dbc", 30, 40, (84, 84))])
+def test_cli_films_a_policy_run(preset: str, cap: int, interval: int, size: tuple[int, int], tmp_path: Path) -> None:
+    """Figs 11, 19 and 22 from smoke runs (CarRacing and cheetah capped), as the README's table says."""
     run_dir = tmp_path / "runs" / preset / "default" / "seed=0"
-    assert execute(compose_preset(preset, tmp_path / "runs"), run_dir) == "done"
+    cfg = compose_preset(preset, tmp_path / "runs")
+    assert execute(cfg, run_dir) == "done"
     done = film(str(run_dir), *(["--max-steps", str(cap)] if cap else []))
     assert done.returncode == 0, done.stderr[-2000:]
     meta = read_json(run_dir / "filmstrip" / "filmstrip.json")
     with np.load(run_dir / "filmstrip" / "frames.npz") as npz:
         frames, steps = npz["frames"], npz["frame_steps"]
-    length = meta["episode_length"]
-    assert steps.tolist() == meta["frame_steps"] == sorted({*range(0, length, interval), length})
+    frames_run = meta["episode_length"] * cfg.env.action_repeat  # frame steps count action repeat
+    assert steps.tolist() == meta["frame_steps"] == sorted({*range(0, frames_run, interval), frames_run})
     assert frames.shape == (len(steps), *size, 3) and frames.dtype == np.uint8 and frames.std() > 0
-    assert meta["interval"] == interval and meta["checkpoint"].startswith("ppo-") and meta["run_status"] == "done"
+    assert meta["interval"] == interval and meta["run_status"] == "done"
+    assert meta["checkpoint"] == "dbc.pt" if cfg.runner == "dbc" else meta["checkpoint"].startswith("ppo-")
     assert np.isfinite(meta["episode_return"])
-    assert meta["steps_to_goal"] == (length if preset.startswith("mountaincar") and meta["terminated"] else None)
+    assert meta["steps_to_goal"] == (meta["episode_length"] if preset.startswith("mountaincar") and meta["terminated"]
+                                     else None)
     first = (run_dir / "filmstrip" / "frames.npz").read_bytes()
     again = film(str(run_dir), "--out", str(tmp_path / "again"), *(["--max-steps", str(cap)] if cap else []))
     assert again.returncode == 0 and (tmp_path / "again" / "frames.npz").read_bytes() == first  # deterministic

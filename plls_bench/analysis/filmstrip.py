@@ -148,10 +148,12 @@ def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] 
     strip = filmstrip_config(record_json["config"]["env"]["name"], overrides or [])
     cfg, act, checkpoint = POLICIES[runner](run_dir, device)
     rec = record(cfg, act, strip, max_steps)
+    status = read_json(run_dir / "status.json") or {}
     meta = {"interval": strip.interval, "frame_steps": rec.frame_steps, "episode_return": rec.episode_return,
             "steps_to_goal": rec.length if strip.goal and rec.terminated else None,
             "episode_length": rec.length, "terminated": rec.terminated, "checkpoint": checkpoint,
-            "run_status": (read_json(run_dir / "status.json") or {}).get("state"), "max_steps": max_steps or None,
+            "run_status": status.get("state"), "run_config_hash": status.get("config_hash"),
+            "max_steps": max_steps or None,
             "settings": asdict(strip)}
     out = out or run_dir / "filmstrip"
     atomic_write_bytes(out / "frames.npz", npz_bytes({"frames": np.stack(rec.frames),
