@@ -19,6 +19,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import torch
@@ -35,8 +36,11 @@ from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 SECTION = "dbc_throughput"
 
 
-def measure(preset: str, budget: str, threads: int, steps: int, updates: int, runs_dir: str) -> dict[str, float]:
-    cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false"])
+def measure(preset: str, budget: str, threads: int, steps: int, updates: int, runs_dir: str,
+            overrides: Sequence[str] = ()) -> dict[str, float]:
+    """Acting env steps/s and seconds per update; ``overrides`` apply after the preset's."""
+    cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false",
+                   *overrides])
     torch.set_num_threads(threads)
     seed_everything(0)
     trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset))  # no checkpoint there: fresh

@@ -11,19 +11,19 @@ command and the machine, and rewrites this script's section of ``BENCHMARKS.md``
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import shlex
 import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Sequence
 
 import torch
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
+from bench.benchmarks_md import machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.seeding import derive_seeds, seed_everything  # noqa: E402
 from plls_bench.train.agent import build_vec_env, new_model  # noqa: E402
@@ -32,9 +32,12 @@ from plls_bench.train.ppo import EpisodeStats  # noqa: E402
 SECTION = "ppo_throughput"
 
 
-def measure(preset: str, budget: str, iterations: int, runs_dir: str) -> dict[str, float]:
-    """Median seconds of rollout and update per PPO iteration, and env steps per second."""
-    cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false"])
+def measure(preset: str, budget: str, iterations: int, runs_dir: str,
+            overrides: Sequence[str] = ()) -> dict[str, float]:
+    """Median seconds of rollout and update per PPO iteration, and env steps per second.
+    ``overrides`` (e.g. a shorter ``algo.ppo.n_steps``) are applied after the preset's."""
+    cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false",
+                   *overrides])
     assert cfg.algo.ppo is not None
     if cfg.torch_threads > 0:
         torch.set_num_threads(cfg.torch_threads)
@@ -57,23 +60,6 @@ def measure(preset: str, budget: str, iterations: int, runs_dir: str) -> dict[st
     r, t, c = statistics.median(rollout), statistics.median(total), statistics.median(cpu)
     return {"steps": steps, "rollout_s": r, "update_s": t - r, "rollout_sps": steps / r, "sps": steps / t,
             "cpu_s": c, "cpu_sps": steps / c, "threads": torch.get_num_threads()}
-
-
-def machine() -> str:
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    cpu = platform.processor() or platform.machine()
-    return f"{platform.node()}: {cpu}, {os.cpu_count()} cores, load average {load}; torch {torch.__version__}"
-
-
-def write_section(text: str, path: Path = REPO / "BENCHMARKS.md") -> None:
-    begin, end = f"<!-- {SECTION}:begin -->", f"<!-- {SECTION}:end -->"
-    old = path.read_text() if path.exists() else "# Benchmarks\n\nEach section is rewritten by the script it names.\n"
-    block = f"{begin}\n{text.rstrip()}\n{end}"
-    if begin in old and end in old:
-        new = old[:old.index(begin)] + block + old[old.index(end) + len(end):]
-    else:
-        new = old.rstrip() + "\n\n" + block + "\n"
-    path.write_text(new if new.endswith("\n") else new + "\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -106,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
         "CPU s / iteration | steps per CPU-s | torch threads |",
         "|---|---|---|---|---|---|---|---|---|", *rows])
     if not args.no_write:
-        write_section(text)
+        write_section(SECTION, text)
     return 0
 
 

@@ -25,9 +25,15 @@ def reproduce(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[s
 
 def start_reproduce(*args: str) -> subprocess.Popen[str]:
     """reproduce in its own process group, as a terminal would run it (Ctrl-C reaches every job)."""
+    # A shell's background job (`pytest ... &`) starts with SIGINT ignored, and children inherit
+    # that; restore the default so Ctrl-C reaches reproduce as it would from a terminal.
     return subprocess.Popen([sys.executable, "-m", "plls_bench.reproduce", *args], cwd=REPO_ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_default_sigint)
+
+
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def wait_for_state(status: Path, state: str, timeout: float = 300) -> None:

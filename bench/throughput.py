@@ -1,0 +1,196 @@
+"""Throughput of every kind of work a profile runs, for ``reproduce.sh --dry-run``'s cost estimate.
+
+    nice -n 10 .venv/bin/python bench/throughput.py                 # every preset (about 15 minutes)
+    nice -n 10 .venv/bin/python bench/throughput.py --keys collect/ repr_action/   # refresh some keys
+
+Measures, on this machine, the rates ``plls_bench/plan.py`` multiplies work by: random-policy
+collection (env steps/s, ``collect/<env>``), V_s / V_a training (samples/s over one epoch of
+random inputs of the right shape, ``repr_state|repr_action/<env>``), policy learning and
+evaluation of each PPO and DBC preset (env steps/s, ``train/<preset>``, ``eval/<preset>``) and
+studies (runs/s, ``study/<preset>``). PPO and DBC numbers come from ``bench/ppo_throughput.py``
+and ``bench/dbc_throughput.py`` at shortened horizons. Writes ``bench/throughput.json`` (merged
+with the keys not measured this time) and this script's section of ``BENCHMARKS.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import tempfile
+import time
+from datetime import date
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import torch
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from bench import dbc_throughput, ppo_throughput  # noqa: E402
+from bench.benchmarks_md import machine, write_section  # noqa: E402
+from plls_bench.composition import compose  # noqa: E402
+from plls_bench.config import Config  # noqa: E402
+from plls_bench.plan import THROUGHPUT_FILE, list_presets  # noqa: E402
+from plls_bench.runs import atomic_write_json  # noqa: E402
+
+SECTION = "throughput"
+Measure = Callable[[], float]
+
+
+def _config(preset: str, budget: str, runs_dir: str, *overrides: str) -> Config:
+    return compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false",
+                    *overrides])
+
+
+def collect_rate(cfg: Config, steps: int) -> float:
+    """Env steps per second of random-policy collection (one wave of parallel episodes)."""
+    from plls_bench.data.collect import collect_random_policy
+
+    episodes = cfg.env.data_num_envs
+    start = time.perf_counter()
+    collect_random_policy(cfg.env, episodes, steps, seed=0, progress=False)
+    return episodes * steps / (time.perf_counter() - start)
+
+
+def repr_rate(cfg: Config, which: str, samples: int) -> float:
+    """Training samples per second of one V_s / V_a epoch on random inputs of the task's shape."""
+    from plls_bench.repr import action_dim, new_model, resolve_device
+    from plls_bench.repr.fit import Split, fit, torch_threads
+
+    mcfg = getattr(cfg.repr, which)
+    rng = np.random.default_rng(0)
+    if which == "action":
+        n_actions = action_dim(cfg)
+        array = rng.uniform(-1, 1, (samples + 64, n_actions)).astype(np.float32)
+    else:
+        n_actions = None
+        size = cfg.env.image_size  # frames are stored channels-first, as uint8
+        array = rng.integers(0, 256, (samples + 64, 3, size, size), dtype=np.uint8)
+    train, val = Split(array, np.arange(samples)), Split(array, np.arange(samples, samples + 64))
+    threads = cfg.torch_threads or (1 if which == "action" else torch.get_num_threads())
+    with tempfile.TemporaryDirectory() as tmp, torch_threads(threads):
+        model = new_model(cfg, which, n_actions)
+        start = time.perf_counter()
+        fit(model, train, val, epochs=1, batch_size=mcfg.batch_size, learning_rate=mcfg.learning_rate, seed=0,
+            device=resolve_device(cfg.device), resume=Path(tmp) / "resume.pt", progress=False, desc="")
+        return samples / (time.perf_counter() - start)
+
+
+def study_rate(cfg: Config, runs_dir: str) -> float:
+    """Runs per second of a study (its V_a built beforehand: that is costed as repr_action)."""
+    from plls_bench.repr import get_action_vae
+    from plls_bench.runner import execute
+
+    get_action_vae(cfg)
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        execute(cfg, Path(tmp) / "study")
+        return 1.0 / (time.perf_counter() - start)
+
+
+# Representations in the RL presets come from a tiny dataset and one epoch: their weights do not
+# change the speed of acting or updating, and a quick-budget V_s would take longer than the bench.
+TINY_REPR = ("budget.data_episodes=2", "budget.data_steps_per_episode=100", "budget.repr_epochs=1",
+             "budget.repr_action_epochs=1")
+
+
+def rate_keys(cfg: Config) -> list[str]:
+    """The rate keys ``plls_bench.plan`` looks up for a preset."""
+    env, preset = cfg.env.name, cfg.experiment
+    if cfg.runner == "collect":
+        return [f"collect/{env}"]
+    if cfg.runner == "repr":
+        return [f"repr_{w}/{env}" for w in ("state", "action") if getattr(cfg.repr, w).kind == "vae"]
+    if cfg.runner == "study":
+        return [f"study/{preset}"]
+    return [f"train/{preset}", f"eval/{preset}"]
+
+
+def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float, str]]:
+    """Measured rates of ``preset``'s keys that ``args.keys`` selects: key -> (value, unit)."""
+    cfg = _config(preset, args.budget, args.runs)
+    if args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in rate_keys(cfg)):
+        return {}
+    env, rates = cfg.env.name, {}
+    if cfg.runner == "collect":
+        rates[f"collect/{env}"] = (collect_rate(cfg, args.collect_steps), "env steps/s")
+    elif cfg.runner == "repr":
+        for which, samples in (("state", args.state_samples), ("action", args.action_samples)):
+            if getattr(cfg.repr, which).kind == "vae":
+                rates[f"repr_{which}/{env}"] = (repr_rate(cfg, which, samples), "samples/s")
+    elif cfg.runner == "study":
+        rates[f"study/{preset}"] = (study_rate(cfg, args.runs), "runs/s")
+    elif cfg.runner == "ppo":
+        horizon = [f"algo.ppo.n_steps={args.ppo_steps}"] if args.ppo_steps else []
+        m = ppo_throughput.measure(preset, args.budget, args.ppo_iterations, args.runs, [*TINY_REPR, *horizon])
+        rates[f"train/{preset}"] = (m["sps"], "env steps/s")
+        rates[f"eval/{preset}"] = (m["rollout_sps"], "env steps/s")  # acting without updates
+    elif cfg.runner == "dbc":
+        m = dbc_throughput.measure(preset, args.budget, 1, args.dbc_steps, args.dbc_updates, args.runs,
+                                   list(TINY_REPR))
+        # one update per agent step, i.e. per action_repeat env steps
+        seconds_per_env_step = 1.0 / m["env_sps"] + m["update_s"] / cfg.env.action_repeat
+        rates[f"train/{preset}"] = (1.0 / seconds_per_env_step, "env steps/s")
+        rates[f"eval/{preset}"] = (m["env_sps"], "env steps/s")
+    return rates
+
+
+def merged(rates: dict[str, tuple[float, str]], command: str, host: str) -> dict:
+    """``bench/throughput.json`` with ``rates`` replacing their keys (the others are kept)."""
+    try:
+        data = json.loads(THROUGHPUT_FILE.read_text())
+    except (OSError, ValueError):
+        data = {"rates": {}}
+    stamp = {"date": date.today().isoformat(), "command": command, "machine": host}
+    for key, (value, unit) in rates.items():
+        data["rates"][key] = {"value": round(value, 4), "unit": unit, **stamp}
+    data["rates"] = dict(sorted(data["rates"].items()))
+    return data
+
+
+def section(data: dict) -> str:
+    rows = [f"| `{key}` | {e['value']:,.4g} | {e['unit']} | {e['date']} | {e['machine']} |"
+            for key, e in data["rates"].items()]
+    return "\n".join([
+        "## Throughput table for cost estimates (`bench/throughput.py` -> `bench/throughput.json`)", "",
+        "`reproduce.sh --dry-run` multiplies each preset's work by these rates. Each row names the "
+        "machine and load it was measured under; re-run the script on your machine for estimates of it.",
+        "", "| key | rate | unit | measured | machine |", "|---|---|---|---|---|", *rows,
+        "", "Commands: " + "; ".join(sorted({f"`{e['command']}`" for e in data["rates"].values()}))])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--presets", nargs="+", default=None, help="presets to measure (default: all)")
+    parser.add_argument("--keys", nargs="+", default=None, help="only rate keys starting with these")
+    parser.add_argument("--budget", default="quick", help="budget whose algorithm settings are used")
+    parser.add_argument("--collect-steps", type=int, default=200, help="steps per env of collection")
+    parser.add_argument("--state-samples", type=int, default=500, help="frames in the V_s epoch")
+    parser.add_argument("--action-samples", type=int, default=20000, help="actions in the V_a epoch")
+    parser.add_argument("--ppo-iterations", type=int, default=1, help="timed PPO iterations")
+    parser.add_argument("--ppo-steps", type=int, default=125, help="PPO horizon override (0: the preset's)")
+    parser.add_argument("--dbc-steps", type=int, default=50, help="timed DBC acting steps")
+    parser.add_argument("--dbc-updates", type=int, default=5, help="timed DBC updates")
+    parser.add_argument("--runs", default=str(Path(tempfile.gettempdir()) / "plls_bench_throughput"),
+                        help="runs_dir for the artifacts the measurements need")
+    parser.add_argument("--no-write", action="store_true", help="print only")
+    args = parser.parse_args(argv)
+    command = "nice -n 10 .venv/bin/python bench/throughput.py " + shlex.join(sys.argv[1:] if argv is None else argv)
+    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    rates: dict[str, tuple[float, str]] = {}
+    for preset in args.presets or list_presets():
+        for key, (value, unit) in preset_rates(preset, args).items():
+            rates[key] = (value, unit)
+            print(f"{key:40s} {value:12,.4g} {unit}", flush=True)
+    data = merged(rates, command, machine())
+    if not args.no_write:
+        atomic_write_json(THROUGHPUT_FILE, data)
+        write_section(SECTION, section(data))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
