@@ -91,6 +91,11 @@ _EPOCH = (1980, 1, 1, 0, 0, 0)  # fixed zip timestamps: same arrays -> byte-iden
 def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """Write ``arrays`` as a compressed ``.npz`` that is byte-identical for identical inputs
     (numpy's own savez stamps the current time into the zip), atomically."""
+    atomic_write_bytes(path, npz_bytes(arrays))
+
+
+def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
+    """The bytes of :func:`save_npz`'s file (for ``Run.write_bytes`` into a run directory)."""
     buffer = BytesIO()
     with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(arrays):
@@ -99,7 +104,7 @@ def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
             info.external_attr = 0o644 << 16
             with archive.open(info, "w", force_zip64=True) as member:
                 np.lib.format.write_array(member, np.ascontiguousarray(arrays[name]), allow_pickle=False)
-    atomic_write_bytes(path, buffer.getvalue())
+    return buffer.getvalue()
 
 
 def load_npz(path: Path) -> dict[str, np.ndarray]:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from plls_bench.config import BUDGET_NAMES, ConfigError
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile
+from plls_bench.runs import config_hash, read_json
 
 LAUNCHERS = ("local", "joblib", "slurm")
 EXIT_INTERRUPTED = 130
@@ -74,6 +75,39 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
     return failed
 
 
+def filmed_presets() -> set[str]:
+    """Presets whose first trial a filmstrip figure shows (Figs 11, 19, 22), from the registry."""
+    from plls_bench.report import fig_images
+    from plls_bench.report.registry import ENTRIES
+
+    return {e.sources[0].experiment for e in ENTRIES if e.build is fig_images.filmstrip}
+
+
+def film_policies(plans: list[PresetPlan]) -> list[str]:
+    """Film the first trial of each filmed preset once it is done (``budget.eval_max_steps``
+    caps the episode, as for its test episodes); a filmstrip of the same run is not redone.
+    Returns the presets whose filmstrip failed."""
+    failed, filmed = [], filmed_presets()
+    for plan in plans:
+        if plan.experiment not in filmed or not plan.trials:
+            continue
+        trial = plan.trials[0]
+        status = read_json(trial.run_dir / "status.json") or {}
+        if status.get("state") != "done" or status.get("config_hash") != config_hash(trial.cfg):
+            print(f"[reproduce] {plan.experiment}: no filmstrip, seed={trial.seed} is not done", flush=True)
+            continue
+        meta = read_json(trial.run_dir / "filmstrip" / "filmstrip.json") or {}
+        if meta.get("run_config_hash") == status["config_hash"] and meta.get("run_status") == "done":
+            print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
+            continue
+        cap = trial.cfg.budget.eval_max_steps
+        command = [sys.executable, "-m", "plls_bench.analysis.filmstrip", str(trial.run_dir),
+                   *(["--max-steps", str(cap)] if cap else [])]
+        if subprocess.run(command).returncode != 0:
+            failed.append(f"{plan.experiment} (filmstrip)")
+    return failed
+
+
 def collect_results(runs_dir: str, out_dir: str) -> int:
     """Regenerate every table and figure from the runs (gaps from failed presets are reported)."""
     from plls_bench.report.__main__ import main as report_main  # lazy: plotting stack
@@ -121,6 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     overrides = launcher_overrides(args.launcher, args.jobs, args.hydra)
     try:
         failed = run_plans(plans, args.profile, args.runs, overrides)
+        failed += film_policies(plans)
     except KeyboardInterrupt:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "
               "from its checkpoint; run the same command again to finish the rest", file=sys.stderr)

@@ -21,6 +21,7 @@ RUNNERS: dict[str, str] = {
     "ppo": "plls_bench.train.ppo:run",
     "repr": "plls_bench.repr.train:run",
     "dbc": "plls_bench.train.dbc:run",
+    "study": "plls_bench.analysis.studies:run",
 }
 
 

@@ -19,19 +19,19 @@ from plls_bench.config import Config
 from plls_bench.report.registry import ENTRIES
 from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json, run_dir_path
 
-# The group choices of each registry preset; shipped presets where they exist (PPO: issue 4),
-# the rest until their issues ship them.
+# The group choices of each registry preset; shipped presets where they exist (PPO: issue 4, the
+# MountainCar studies: issue 6), the rest until their issues ship them.
 DBC = ["env=cheetah", "algo=dbc", "runner=dbc"]
 PRESETS: dict[str, list[str]] = {
     **{name: [f"+experiment={name}"] for name in ("mountaincar_ppo", "mountaincar_plls_ppo", "carracing_ppo",
-                                                   "carracing_plls_ppo", "carracing_ppo_vs", "carracing_ppo_va")},
+                                                   "carracing_plls_ppo", "carracing_ppo_vs", "carracing_ppo_va",
+                                                   "mountaincar_multistep", "mountaincar_onestep",
+                                                   "mountaincar_generalisation")},
     "cheetah_dbc": DBC,
     "cheetah_plls_dbc": [*DBC, "repr/action=vae"],
     "mountaincar_va": ["env=mountaincar", "runner=repr", "repr/action=vae"],
     "carracing_vs": ["env=carracing", "runner=repr", "repr/state=vae"],
     "carracing_va": ["env=carracing", "runner=repr", "repr/action=vae"],
-    **{f"mountaincar_{s}": ["env=mountaincar", "runner=study", "repr/action=vae"]
-       for s in ("multistep", "onestep", "generalisation")},
 }
 
 

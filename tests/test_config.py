@@ -21,6 +21,10 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"+experiment={name}"]
     if group == "hydra/launcher":
         return [f"hydra/launcher={name}"]
+    if group == "study":  # a MountainCar latent-space study needs V_a
+        return [f"+study={name}", "runner=study", "repr/action=vae"]
+    if group == "filmstrip":  # one per task, named after it
+        return [f"+filmstrip={name}", f"env={name}"]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name == "ppo" else []
         extra += ["env=mountaincar"] if group == "algo" and not name.startswith("dbc") else []
@@ -104,6 +108,7 @@ BAD_INPUTS = [
     (["seed=-3"], "seed"),
     (["repr.action.latnt_dim=3"], "latnt_dim"),
     (["budget.trials=0"], "budget.trials"),
+    (["+study=onestep", "runner=study", "repr/action=vae", "study.s0=[0.9,0.0]"], "study.s0"),
 ]
 
 

@@ -68,11 +68,27 @@ def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
             values.setdefault(str(entry.get("artifact", trial.seed)), float(entry["test_mse"]))
     if not values:
         raise NotJudged(f"no test MSE of model {model} in {exp.name}")
-    s = summarise(np.array(list(values.values())))
-    text = f"{fmt(s.mean)} ± {fmt(s.std)} ({s.n} model{'s' if s.n > 1 else ''})"
+    return _mean_estimate(list(values.values()), "model", _budget(runs, exp.name))
+
+
+def study_metric(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """Mean over trials of the number ``param`` of ``metrics/study.json`` (a latent-space study;
+    each trial samples its own actions from the same V_a)."""
+    exp = runs.experiment(claim["experiment"])
+    values = [(runs.json(exp, trial, "metrics/study.json") or {}).get(claim["param"]) for trial in exp.trials]
+    values = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
+    if not values:
+        raise NotJudged(f"no {claim['param']} in {exp.name}'s metrics/study.json")
+    return _mean_estimate(values, "trial", _budget(runs, exp.name, n=[len(values)]))
+
+
+def _mean_estimate(values: list[float], unit: str, budget: str) -> Estimate:
+    """The mean of ``values`` with its bootstrap CI, shown as mean ± std (n units), CI."""
+    s = summarise(np.array(values))
+    text = f"{fmt(s.mean)} ± {fmt(s.std)} ({s.n} {unit}{'s' if s.n > 1 else ''})"
     if not math.isnan(s.mean_ci[0]):
         text += f", CI [{fmt(s.mean_ci[0])}, {fmt(s.mean_ci[1])}]"
-    return Estimate(s.mean, s.mean_ci, text, _budget(runs, exp.name))
+    return Estimate(s.mean, s.mean_ci, text, budget)
 
 
 def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -168,7 +184,7 @@ def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
 KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
     "repr_mse": repr_mse, "param_count": param_count, "steps_to_goal": steps_to_goal,
     "convergence": convergence_point, "ahead_from": ahead_point, "std_gap": std_gap,
-    "p_improvement": p_improvement,
+    "p_improvement": p_improvement, "study": study_metric,
 }
 RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 

@@ -18,10 +18,13 @@ from typing import Any
 
 import numpy as np
 import torch
+from gymnasium.spaces import Box
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.artifacts import load_npz, save_npz
-from plls_bench.runs import Run
+from plls_bench.composition import config_from_dict
+from plls_bench.config import Config
+from plls_bench.runs import Run, read_json
 
 CHECKPOINT = "checkpoints/dbc.pt"
 PROGRESS = "checkpoints/progress.json"
@@ -91,3 +94,29 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
         raise RuntimeError(f"replay chunks in {run.path / REPLAY_DIR} hold {replay.n_written} slots, "
                            f"the checkpoint expects {progress.replay_written}")
     return progress
+
+
+def load_trained_agent(run_dir: Path, device: str = "cpu") -> tuple[Config, DBCAgent, Box]:
+    """A DBC run's typed config, its last checkpointed agent (no replay, no optimiser use) and the
+    box its actions map to (V_a's latent box with ``repr/action=vae``), for filmstrips."""
+    from plls_bench.envs import make_vec_env
+    from plls_bench.latent import wrap_latent
+    from plls_bench.repr import resolve_device
+
+    record = read_json(run_dir / "config.json")
+    if record is None:
+        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    path = run_dir / CHECKPOINT
+    if not path.exists():
+        raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
+    cfg = config_from_dict(record["config"])
+    assert cfg.algo.dbc is not None
+    venv = wrap_latent(make_vec_env(cfg.env, 1, 0), cfg)  # the spaces the agent saw in training
+    try:
+        obs_shape, space = venv.observation_space.shape, venv.action_space
+    finally:
+        venv.close()
+    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, resolve_device(device))
+    state = torch.load(path, map_location=agent.device, weights_only=True)
+    agent.load_state_dict(state["agent"])
+    return cfg, agent, space

@@ -1,0 +1,190 @@
+"""Filmstrips of trained policies (Figs 11, 19, 22): ``python -m plls_bench.analysis.filmstrip RUN_DIR``.
+
+One evaluation episode of the run's last checkpointed policy (deterministic actions, through the
+same V_s / V_a wrappers as in training), seeded as the trial's evaluation episode
+``filmstrip.episode``, with a frame every ``filmstrip.interval`` env frames and at its last step.
+Settings: ``conf/filmstrip/<env>.yaml``. Writes ``<out>/frames.npz`` (``frames`` ``(k, H, W, 3)``
+uint8, ``frame_steps`` ``(k,)``) and then ``<out>/filmstrip.json`` (``interval``, ``frame_steps``,
+``episode_return``, ``steps_to_goal``, ``checkpoint``, ...); ``<out>`` is ``RUN_DIR/filmstrip``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from dataclasses import asdict
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import gymnasium as gym
+import numpy as np
+
+from plls_bench.artifacts import npz_bytes
+from plls_bench.config import Config, ConfigError, FilmstripConfig
+from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
+from plls_bench.seeding import derive_seeds
+
+Act = Callable[[np.ndarray], np.ndarray]  # batched observations (1, *O) -> actions (1, *A)
+
+
+class FrameRecorder(gym.Wrapper):
+    """Records the first episode of ``env``: a frame (resized to ``height``) after every
+    ``interval`` env frames (``action_repeat`` per step) and at its last step, and its raw return."""
+
+    def __init__(self, env: gym.Env, interval: int, action_repeat: int, height: int) -> None:
+        super().__init__(env)
+        self.interval, self.action_repeat, self.height = interval, action_repeat, height
+        self.frames: list[np.ndarray] = []
+        self.frame_steps: list[int] = []
+        self.episode_return, self.length = 0.0, 0
+        self.terminated = self.over = False
+
+    def reset(self, **kwargs):
+        out = self.env.reset(**kwargs)
+        if not self.frames:  # the recorded episode's first frame; later resets are ignored
+            self._grab()
+        return out
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if not self.over:
+            self.length += 1
+            self.episode_return += float(reward)
+            self.terminated, self.over = bool(terminated), bool(terminated or truncated)
+            if (self.length * self.action_repeat) % self.interval == 0 or self.over:
+                self._grab()
+        return obs, reward, terminated, truncated, info
+
+    def finish(self) -> None:
+        """End the recording (a step cap), adding the last step's frame if it is not in yet."""
+        if self.frame_steps[-1] != self.length * self.action_repeat:
+            self._grab()
+        self.over = True
+
+    def _grab(self) -> None:
+        frame = np.asarray(self.env.render())
+        if frame.shape[0] != self.height:
+            width = round(frame.shape[1] * self.height / frame.shape[0])
+            frame = cv2.resize(frame, (width, self.height), interpolation=cv2.INTER_AREA)
+        self.frames.append(np.ascontiguousarray(frame, dtype=np.uint8))
+        self.frame_steps.append(self.length * self.action_repeat)
+
+
+def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0) -> FrameRecorder:
+    """Roll out one episode of ``act`` on ``cfg``'s task (V_s / V_a applied by ``wrap_latent``,
+    as in training) and return its recorder. ``max_steps > 0`` caps the episode (tests)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from plls_bench.envs import make_env
+    from plls_bench.latent import wrap_latent
+    from plls_bench.repr.fit import torch_threads
+
+    if strip.interval % cfg.env.action_repeat:
+        raise ConfigError(f"filmstrip.interval: {strip.interval} frames is not a multiple of "
+                          f"env.action_repeat = {cfg.env.action_repeat}")
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # pygame renders off-screen (MountainCar, CarRacing)
+    recorder = FrameRecorder(make_env(cfg.env, render_mode="rgb_array"), strip.interval,
+                             cfg.env.action_repeat, strip.frame_height)
+    venv = wrap_latent(DummyVecEnv([lambda: recorder]), cfg)
+    # One env: every forward pass is a batch of one, which a second intra-op thread only slows
+    # down (10x for V_s's convolutions on a busy 2-core machine). An explicit torch_threads wins.
+    with torch_threads(cfg.torch_threads or 1):
+        try:
+            if strip.reset_options:
+                venv.set_options(dict(strip.reset_options))
+            venv.seed(derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).eval + strip.episode)
+            obs = venv.reset()
+            while not recorder.over and not (max_steps and recorder.length >= max_steps):
+                obs, _, _, _ = venv.step(act(obs))
+            recorder.finish()
+        finally:
+            venv.close()
+    return recorder
+
+
+# --------------------------------------------------------------------------- trained policies
+def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
+    from plls_bench.train.agent import load_trained
+    from plls_bench.train.checkpoint import latest
+
+    cfg, model = load_trained(run_dir, device)
+    found = latest(run_dir)
+    assert found is not None  # load_trained raised otherwise
+    return cfg, lambda obs: model.predict(obs, deterministic=True)[0], found[0].name
+
+
+def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
+    from plls_bench.train.dbc import to_env_action
+    from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
+
+    cfg, agent, space = load_trained_agent(run_dir, device)
+    return cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space), Path(CHECKPOINT).name
+
+
+# runner -> (run dir, device) -> (typed config, deterministic policy, checkpoint name)
+POLICIES: dict[str, Callable[[Path, str], tuple[Config, Act, str]]] = {"ppo": _ppo_policy, "dbc": _dbc_policy}
+
+
+def filmstrip_config(env: str, overrides: list[str]) -> FilmstripConfig:
+    """``conf/filmstrip/<env>.yaml`` with ``overrides`` (``interval=8``), typed and validated."""
+    from plls_bench.composition import compose
+
+    strip = compose([f"env={env}", f"+filmstrip={env}", *(f"filmstrip.{o}" for o in overrides)]).filmstrip
+    assert strip is not None
+    return strip
+
+
+def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] | None = None,
+                   device: str = "cpu", max_steps: int = 0) -> dict:
+    """Record ``run_dir``'s policy and write the filmstrip files; returns filmstrip.json's content."""
+    record_json = read_json(run_dir / "config.json")
+    if record_json is None:
+        raise ConfigError(f"{run_dir}: no readable config.json, not a run directory")
+    runner = record_json["config"].get("runner")
+    if runner not in POLICIES:
+        raise ConfigError(f"{run_dir}: runner {runner!r} has no policy to film; filmstrips exist for "
+                          f"{', '.join(POLICIES)}")
+    strip = filmstrip_config(record_json["config"]["env"]["name"], overrides or [])
+    cfg, act, checkpoint = POLICIES[runner](run_dir, device)
+    rec = record(cfg, act, strip, max_steps)
+    status = read_json(run_dir / "status.json") or {}
+    meta = {"interval": strip.interval, "frame_steps": rec.frame_steps, "episode_return": rec.episode_return,
+            "steps_to_goal": rec.length if strip.goal and rec.terminated else None,
+            "episode_length": rec.length, "terminated": rec.terminated, "checkpoint": checkpoint,
+            "run_status": status.get("state"), "run_config_hash": status.get("config_hash"),
+            "max_steps": max_steps or None,
+            "settings": asdict(strip)}
+    out = out or run_dir / "filmstrip"
+    atomic_write_bytes(out / "frames.npz", npz_bytes({"frames": np.stack(rec.frames),
+                                                      "frame_steps": np.asarray(rec.frame_steps, dtype=np.int64)}))
+    atomic_write_json(out / "filmstrip.json", meta)  # last: a complete filmstrip has both files
+    return meta
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m plls_bench.analysis.filmstrip", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run_dir", type=Path, help="a ppo (or dbc) run directory with a checkpoint")
+    parser.add_argument("--out", type=Path, help="where frames.npz and filmstrip.json go (RUN_DIR/filmstrip)")
+    parser.add_argument("--device", default="cpu", help="torch device of the policy (cpu | cuda)")
+    parser.add_argument("--max-steps", type=int, default=0, help="cap the episode at this many agent steps")
+    parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
+                        help="filmstrip settings, e.g. interval=8 episode=2 (conf/filmstrip/<env>.yaml)")
+    args = parser.parse_args(argv)
+    try:
+        if not args.run_dir.is_dir():
+            raise ConfigError(f"{args.run_dir}: no such run directory")
+        meta = make_filmstrip(args.run_dir, args.out, args.overrides, args.device, args.max_steps)
+    except (ConfigError, FileNotFoundError) as err:
+        print(f"filmstrip: {err}", file=sys.stderr)
+        return 2
+    goal = f", goal after {meta['steps_to_goal']} steps" if meta["steps_to_goal"] is not None else ""
+    print(f"filmstrip: {len(meta['frame_steps'])} frames every {meta['interval']} steps, "
+          f"return {meta['episode_return']:.2f}, {meta['episode_length']} steps{goal} "
+          f"-> {args.out or args.run_dir / 'filmstrip'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
