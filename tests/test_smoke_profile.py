@@ -1,0 +1,37 @@
+"""The main job end to end: ``reproduce --profile smoke`` runs every preset, films the policies
+and renders every table and figure of the registry; a second run redoes nothing."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from plls_bench.plan import list_presets
+from plls_bench.report.collect import IdStatus, verify_outputs
+from plls_bench.report.registry import ENTRIES
+from plls_bench.reproduce import filmed_presets
+from tests.test_reproduce import reproduce
+
+
+@pytest.mark.slow
+def test_smoke_profile_runs_every_preset_and_renders_every_id(tmp_path: Path) -> None:
+    runs, out = tmp_path / "runs", tmp_path / "results"
+    args = ("--profile", "smoke", "--runs", str(runs), "--out", str(out))
+    first = reproduce(*args, timeout=3600)
+    assert first.returncode == 0, (first.stdout + first.stderr)[-4000:]
+    for preset in list_presets():
+        assert f"[reproduce] {preset}: ok; ran 1 trial(s), 0 already done" in first.stdout
+    index = json.loads((out / "index.json").read_text())
+    statuses = {row["id"]: IdStatus(**row) for row in index["ids"]}
+    assert list(statuses) == [entry.id for entry in ENTRIES]
+    assert {i: s.status for i, s in statuses.items() if s.status != "ok"} == {}, "every id has its runs"
+    assert verify_outputs(out, statuses) == []
+    readme = (out / "README.md").read_text()
+    for entry in ENTRIES:
+        assert f"{entry.kind}s/{entry.id}." in readme, f"{entry.id} is not in results/README.md"
+
+    again = reproduce(*args, "--no-report", timeout=600)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert again.stdout.count("trial(s) already done\n") == len(list_presets())
+    assert again.stdout.count("filmstrip already made\n") == len(filmed_presets())
