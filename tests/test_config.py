@@ -100,6 +100,7 @@ def test_cli_prints_the_composed_job_config(tmp_path: Path) -> None:
 
 BAD_INPUTS = [
     (["algo=ppo", "runner=ppo", "algo.ppo.learning_rate=-1"], "algo.ppo.learning_rate"),
+    (["algo=ppo", "runner=ppo", "algo.ppo.activation=elu"], "algo.ppo.activation"),  # V_a has elu, PPO nets do not
     (["repr/action=vae", "repr.action.latent_dim=0"], "repr.action.latent_dim"),
     (["repr.state.latent_dim=0"], "repr.state.latent_dim"),
     (["env=foo"], "env/foo"),

@@ -1,0 +1,124 @@
+"""Typed configuration: dataclass schemas registered in Hydra's ConfigStore.
+
+Values live in ``conf/`` (yaml, every key commented with its source); this module holds only types,
+defaults that are *not* paper settings, and validation. ``validate`` runs when Hydra's
+``DictConfig`` is converted with ``OmegaConf.to_object`` (see :func:`to_config`), which the entry
+point does before it creates a run directory or starts any compute. Errors name the offending key.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+
+from plls_bench.config.analysis import LATENT_CHOICES, STUDY_NAMES, FilmstripConfig, StudyConfig
+from plls_bench.config.checks import (ConfigError, Validated, check, check_choice, check_fraction,
+                                      check_nonnegative, check_positive)
+from plls_bench.config.learning import (ALGO_NAMES, BUDGET_NAMES, FEATURE_EXTRACTORS, PPO_ACTIVATIONS,
+                                        TRANSITION_MODELS, AlgoConfig, BudgetConfig, DBCConfig, PPOConfig)
+from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_ACTIVATIONS, ActionReprConfig,
+                                     EnvConfig, ReprConfig, StateReprConfig)
+
+__all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "ENV_NAMES", "FEATURE_EXTRACTORS", "LATENT_CHOICES",
+           "PPO_ACTIVATIONS", "REPR_KINDS", "RUNNERS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
+           "ActionReprConfig", "AlgoConfig", "BudgetConfig", "Config", "ConfigError", "DBCConfig", "EnvConfig",
+           "FilmstripConfig", "PPOConfig", "ReprConfig", "StateReprConfig", "StudyConfig", "Validated", "check",
+           "check_choice", "check_fraction", "check_nonnegative", "check_positive", "register_configs", "to_config"]
+
+# --------------------------------------------------------------------------- root
+RUNNERS = ("collect", "repr", "ppo", "dbc", "study")
+
+
+@dataclass
+class Config(Validated):
+    """One run: what to run (runner, experiment), on which task, with which seed and budget."""
+
+    experiment: str = "adhoc"
+    variant: str = "auto"
+    runner: str = "collect"
+    seed: int = 0
+    data_seed: int = 0
+    runs_dir: str = "results/runs"
+    device: str = "cpu"
+    torch_threads: int = 0
+    progress: bool = True
+    env: EnvConfig = field(default_factory=EnvConfig)
+    repr: ReprConfig = field(default_factory=ReprConfig)
+    algo: AlgoConfig = field(default_factory=AlgoConfig)
+    budget: BudgetConfig = field(default_factory=BudgetConfig)
+    study: Optional[StudyConfig] = None
+    filmstrip: Optional[FilmstripConfig] = None
+
+    def validate(self) -> None:
+        check_choice(self.runner, RUNNERS, "runner")
+        check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
+        check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
+        check_choice(self.device, ("cpu", "cuda", "auto"), "device")
+        check_nonnegative(self.torch_threads, "torch_threads")
+        check(bool(self.experiment) and "/" not in self.experiment, "experiment",
+              f"must be a non-empty name without '/', got {self.experiment!r}")
+        check("/" not in self.variant, "variant", f"must not contain '/', got {self.variant!r}")
+        if self.runner in ("ppo", "dbc"):
+            check(self.algo.name == self.runner, "algo",
+                  f"runner={self.runner} needs algo={self.runner}, got algo.name={self.algo.name}")
+        if self.runner == "ppo" and self.algo.ppo is not None:
+            self._check_ppo_network(self.algo.ppo)
+        if self.runner == "repr":
+            check("vae" in (self.repr.state.kind, self.repr.action.kind), "repr",
+                  "runner=repr needs repr/state=vae or repr/action=vae (both are none)")
+        if self.repr.state.kind == "vae":
+            self._validate_state_vae()
+        if self.runner == "study":
+            check(self.study is not None, "study", "runner=study needs a study section (+study=NAME)")
+            check(self.env.name == "mountaincar", "env", f"the studies are MountainCar's, got env {self.env.name}")
+            check(self.repr.action.kind == "vae", "repr.action.kind", "runner=study needs repr/action=vae")
+
+    def _validate_state_vae(self) -> None:
+        """V_s needs stored single frames, and its decoder must rebuild the frame's exact size."""
+        state, size = self.repr.state, self.env.image_size
+        check(self.env.data_pixels and self.env.frame_stack == 1, "repr.state.kind",
+              f"vae needs single-frame pixel data; env {self.env.name} has data_pixels="
+              f"{self.env.data_pixels}, frame_stack={self.env.frame_stack}")
+        sizes = state.feature_sizes(size)
+        check(sizes[-1] >= 1, "repr.state.kernel_sizes",
+              f"shrink a {size}x{size} image to nothing: spatial sizes {sizes}")
+        check(state.decoded_size(size) == size, "repr.state.deconv_kernel_sizes",
+              f"{state.deconv_kernel_sizes} decode the {sizes[-1]}x{sizes[-1]} feature map to "
+              f"{state.decoded_size(size)}x{state.decoded_size(size)}, not {size}x{size}")
+
+    def _check_ppo_network(self, ppo: PPOConfig) -> None:
+        """The policy's trunk must fit what it sees: images unless V_s encodes them."""
+        images = self.env.pixels and self.repr.state.kind == "none"
+        want = "paper_cnn" if images else "mlp"
+        seen = "images" if images else "vectors"
+        check(ppo.features_extractor == want, "algo.ppo.features_extractor",
+              f"{ppo.features_extractor} does not fit the policy's observations ({seen}: env={self.env.name}, "
+              f"repr.state={self.repr.state.kind}); use {want}")
+
+
+def register_configs() -> None:
+    """Register the root schema; conf/config.yaml lists it first in its defaults."""
+    ConfigStore.instance().store(name="plls_schema", node=Config)
+
+
+def to_config(cfg: DictConfig | Config) -> Config:
+    """Convert Hydra's DictConfig to the typed :class:`Config` (runs every ``__post_init__``)."""
+    if isinstance(cfg, Config):
+        return cfg
+    try:
+        obj: Any = OmegaConf.to_object(cfg)
+    except ConfigError:
+        raise
+    except Exception as err:  # OmegaConf's own errors: missing values, wrong types
+        raise ConfigError(_omegaconf_message(err)) from err
+    assert isinstance(obj, Config), f"expected Config, got {type(obj).__name__}"
+    return obj
+
+
+def _omegaconf_message(err: Exception) -> str:
+    """First line of an OmegaConf error, prefixed by its full key when it names one."""
+    key = getattr(err, "full_key", None)
+    first = str(err).splitlines()[0] if str(err) else type(err).__name__
+    return f"{key}: {first}" if key else first

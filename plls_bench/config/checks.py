@@ -1,0 +1,52 @@
+"""Validation helpers shared by the config schemas: one :class:`ConfigError` naming the key."""
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+
+from omegaconf import MISSING
+
+
+class ConfigError(ValueError):
+    """A config value is invalid; the message names the key."""
+
+
+def check(ok: bool, key: str, message: str) -> None:
+    """Raise :class:`ConfigError` naming ``key`` unless ``ok``."""
+    if not ok:
+        raise ConfigError(f"{key}: {message}")
+
+
+def check_positive(value: float, key: str) -> None:
+    check(isinstance(value, (int, float)) and math.isfinite(value) and value > 0, key,
+          f"must be > 0, got {value!r}")
+
+
+def check_nonnegative(value: float, key: str) -> None:
+    check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, key,
+          f"must be >= 0, got {value!r}")
+
+
+def check_choice(value: str, choices: tuple[str, ...], key: str) -> None:
+    check(value in choices, key, f"unknown value {value!r}; choose one of {', '.join(choices)}")
+
+
+def check_fraction(value: float, key: str, *, open_right: bool = True) -> None:
+    upper_ok = value < 1 if open_right else value <= 1
+    check(0 < value and upper_ok, key, f"must be in (0, 1{')' if open_right else ']'}, got {value!r}")
+
+
+class Validated:
+    """Runs :meth:`validate` after construction, once every field has a value.
+
+    OmegaConf instantiates schemas with ``???`` placeholders when it registers them; those
+    instances are templates, not configs, so they are not validated. A config converted with
+    ``OmegaConf.to_object`` has no placeholders left (OmegaConf refuses missing values first).
+    """
+
+    def __post_init__(self) -> None:
+        if not any(getattr(self, f.name) == MISSING for f in fields(self)):  # type: ignore[arg-type]
+            self.validate()
+
+    def validate(self) -> None:
+        """Check value ranges and choices; raise :class:`ConfigError` naming the key."""

@@ -1,0 +1,148 @@
+"""Schemas of a task and of its representations V_s and V_a (``env/``, ``repr/state/``, ``repr/action/``)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from omegaconf import MISSING
+
+from plls_bench.config.checks import Validated, check, check_choice, check_fraction, check_nonnegative, check_positive
+
+ENV_NAMES = ("mountaincar", "carracing", "cheetah")
+REPR_KINDS = ("none", "vae")
+DATA_POLICIES = ("uniform", "correlated")
+
+
+# --------------------------------------------------------------------------- environments
+@dataclass
+class EnvConfig(Validated):
+    """One task: a gymnasium id or dm_control domain-task, and its observation settings."""
+
+    name: str = MISSING
+    gym_id: str = MISSING
+    max_episode_steps: int = MISSING
+    pixels: bool = False
+    image_size: int = 0
+    frame_stack: int = 1
+    action_repeat: int = 1
+    camera_id: int = 0
+    data_pixels: bool = False
+    data_num_envs: int = 1
+    data_async: bool = False
+    data_train_fraction: float = MISSING
+    data_policy: str = "uniform"
+    data_policy_correlation: float = 0.95
+
+    def validate(self) -> None:
+        check_choice(self.name, ENV_NAMES, "env.name")
+        check_positive(self.max_episode_steps, "env.max_episode_steps")
+        check_positive(self.frame_stack, "env.frame_stack")
+        check_positive(self.action_repeat, "env.action_repeat")
+        check_positive(self.data_num_envs, "env.data_num_envs")
+        check_fraction(self.data_train_fraction, "env.data_train_fraction")
+        check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
+        check(0 <= self.data_policy_correlation < 1, "env.data_policy_correlation",
+              f"must be in [0, 1), got {self.data_policy_correlation!r}")
+        if self.pixels or self.data_pixels:
+            check_positive(self.image_size, "env.image_size")
+
+
+# --------------------------------------------------------------------------- representations
+@dataclass
+class StateReprConfig(Validated):
+    """V_s: convolutional VAE over image observations (World Models style).
+
+    The encoder is ``len(channels)`` stride-2 convolutions (no padding) with ReLU; the decoder maps
+    z to the encoder's last feature map and mirrors it with stride-2 transposed convolutions whose
+    kernels must bring the image back to its exact size (checked against ``env.image_size``).
+    """
+
+    kind: str = "none"
+    latent_dim: int = 32
+    channels: list[int] = field(default_factory=lambda: [32, 64, 128, 256])
+    kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 4, 4])
+    deconv_kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 5, 4])
+    kl_weight: float = 1.0
+    likelihood_std: float = 0.7071067811865476
+    learning_rate: float = 1e-4
+    batch_size: int = 100
+    val_fraction: float = 0.1
+
+    def validate(self) -> None:
+        check_choice(self.kind, REPR_KINDS, "repr.state.kind")
+        check_positive(self.latent_dim, "repr.state.latent_dim")
+        check_nonnegative(self.kl_weight, "repr.state.kl_weight")
+        check_positive(self.likelihood_std, "repr.state.likelihood_std")
+        check_positive(self.learning_rate, "repr.state.learning_rate")
+        check_positive(self.batch_size, "repr.state.batch_size")
+        check_fraction(self.val_fraction, "repr.state.val_fraction")
+        check(len(self.channels) > 0, "repr.state.channels", "needs at least one conv layer")
+        check(len(self.channels) == len(self.kernel_sizes), "repr.state.kernel_sizes",
+              "needs one kernel size per entry of repr.state.channels")
+        check(len(self.deconv_kernel_sizes) == len(self.channels), "repr.state.deconv_kernel_sizes",
+              "needs one kernel size per entry of repr.state.channels")
+        for i, width in enumerate(self.channels):
+            check_positive(width, f"repr.state.channels[{i}]")
+        for name in ("kernel_sizes", "deconv_kernel_sizes"):
+            for i, size in enumerate(getattr(self, name)):
+                check_positive(size, f"repr.state.{name}[{i}]")
+
+    def feature_sizes(self, image_size: int) -> list[int]:
+        """Spatial sizes through the encoder: ``[image_size, ..., last feature map]``."""
+        sizes = [image_size]
+        for kernel in self.kernel_sizes:
+            sizes.append((sizes[-1] - kernel) // 2 + 1)
+        return sizes
+
+    def decoded_size(self, image_size: int) -> int:
+        """Spatial size the transposed convolutions produce from the last feature map."""
+        size = self.feature_sizes(image_size)[-1]
+        for kernel in self.deconv_kernel_sizes:
+            size = (size - 1) * 2 + kernel
+        return size
+
+
+VAE_ACTIVATIONS = ("relu", "elu", "tanh")  # repr/models.py builds these
+
+
+@dataclass
+class ActionReprConfig(Validated):
+    """V_a: MLP VAE over actions; its frozen decoder maps the policy's latent e to an action."""
+
+    kind: str = "none"
+    latent_dim: int = 3
+    encoder_hidden: list[int] = field(default_factory=lambda: [32, 16, 8])
+    decoder_hidden: list[int] = field(default_factory=lambda: [8, 16, 32])
+    activation: str = "relu"
+    kl_weight: float = 1.0
+    likelihood_std: float = 0.1
+    learning_rate: float = 1e-3
+    batch_size: int = 64
+    val_fraction: float = 0.1
+    latent_action_bound: float = 3.0
+
+    def validate(self) -> None:
+        check_choice(self.kind, REPR_KINDS, "repr.action.kind")
+        check_positive(self.latent_dim, "repr.action.latent_dim")
+        check_choice(self.activation, VAE_ACTIVATIONS, "repr.action.activation")
+        check_nonnegative(self.kl_weight, "repr.action.kl_weight")
+        check_positive(self.likelihood_std, "repr.action.likelihood_std")
+        check_positive(self.learning_rate, "repr.action.learning_rate")
+        check_positive(self.batch_size, "repr.action.batch_size")
+        check_fraction(self.val_fraction, "repr.action.val_fraction")
+        check_positive(self.latent_action_bound, "repr.action.latent_action_bound")
+        for name in ("encoder_hidden", "decoder_hidden"):
+            for i, width in enumerate(getattr(self, name)):
+                check_positive(width, f"repr.action.{name}[{i}]")
+
+
+@dataclass
+class ReprConfig(Validated):
+    """Both representations and how trials share them. Default: one dataset and one model per
+    task, shared by all trials (the paper's offline phase). ``per_trial_training``: every trial
+    trains its own model on the shared dataset (trial 0's is the shared one). ``per_trial``:
+    every trial also collects its own dataset."""
+
+    state: StateReprConfig = field(default_factory=StateReprConfig)
+    action: ActionReprConfig = field(default_factory=ActionReprConfig)
+    per_trial: bool = False
+    per_trial_training: bool = False
