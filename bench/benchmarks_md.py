@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import os
 import platform
+import shlex
+import sys
 from pathlib import Path
 
 import torch
@@ -15,6 +17,13 @@ def machine() -> str:
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     cpu = platform.processor() or platform.machine()
     return f"{platform.node()}: {cpu}, {os.cpu_count()} cores, load average {load}; torch {torch.__version__}"
+
+
+def announce(script: str, argv: list[str] | None) -> str:
+    """Print and return the command line that reproduces this benchmark, and the machine before it."""
+    command = f"nice -n 10 .venv/bin/python bench/{script} " + shlex.join(sys.argv[1:] if argv is None else argv)
+    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    return command
 
 
 def write_section(section: str, text: str, path: Path = REPO / "BENCHMARKS.md") -> None:

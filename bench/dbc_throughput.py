@@ -14,7 +14,6 @@ machine, and rewrites this script's section of ``BENCHMARKS.md``.
 from __future__ import annotations
 
 import argparse
-import shlex
 import statistics
 import sys
 import time
@@ -27,7 +26,7 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.runs import Run  # noqa: E402
 from plls_bench.seeding import seed_everything  # noqa: E402
@@ -78,8 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
     parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
     args = parser.parse_args(argv)
-    command = "nice -n 10 .venv/bin/python bench/dbc_throughput.py " + shlex.join(sys.argv[1:] if argv is None else argv)
-    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    command = announce("dbc_throughput.py", argv)
     rows = []
     for preset in args.presets:
         for threads in args.threads:

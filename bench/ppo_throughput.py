@@ -11,7 +11,6 @@ command and the machine, and rewrites this script's section of ``BENCHMARKS.md``
 from __future__ import annotations
 
 import argparse
-import shlex
 import statistics
 import sys
 import time
@@ -23,7 +22,7 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.seeding import derive_seeds, seed_everything  # noqa: E402
 from plls_bench.train.agent import build_vec_env, new_model  # noqa: E402
@@ -70,8 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", default="results/runs", help="runs_dir (V_s / V_a artifacts are reused)")
     parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
     args = parser.parse_args(argv)
-    command = "nice -n 10 .venv/bin/python bench/ppo_throughput.py " + shlex.join(sys.argv[1:] if argv is None else argv)
-    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    command = announce("ppo_throughput.py", argv)
     rows = []
     for preset in args.presets:
         m = measure(preset, args.budget, args.iterations, args.runs)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import re
-import shlex
 import subprocess
 import sys
 import tempfile
@@ -22,7 +21,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 
 SECTION = "profile_time"
 PRESET_LINE = re.compile(r"^\[reproduce\] (\S+): (.*), (\d+)s$")
@@ -43,8 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="+", metavar="PRESET", help="time only these presets")
     parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
     args = parser.parse_args(argv)
-    command = "nice -n 10 .venv/bin/python bench/profile_time.py " + shlex.join(sys.argv[1:] if argv is None else argv)
-    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    command = announce("profile_time.py", argv)
     with tempfile.TemporaryDirectory(prefix="plls_profile_") as tmp:
         status, seconds, output = run_profile(args.profile, args.only, Path(tmp))
     print(output)

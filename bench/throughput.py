@@ -15,29 +15,25 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
 import sys
 import tempfile
 import time
 from datetime import date
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
-import torch
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from bench import dbc_throughput, ppo_throughput  # noqa: E402
-from bench.benchmarks_md import machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import Config  # noqa: E402
 from plls_bench.plan import THROUGHPUT_FILE, list_presets  # noqa: E402
 from plls_bench.runs import atomic_write_json  # noqa: E402
 
 SECTION = "throughput"
-Measure = Callable[[], float]
 
 
 def _config(preset: str, budget: str, runs_dir: str, *overrides: str) -> Config:
@@ -59,6 +55,7 @@ def repr_rate(cfg: Config, which: str, samples: int) -> float:
     """Training samples per second of one V_s / V_a epoch on random inputs of the task's shape."""
     from plls_bench.repr import action_dim, new_model, resolve_device
     from plls_bench.repr.fit import Split, fit, torch_threads
+    from plls_bench.repr.train import training_threads
 
     mcfg = getattr(cfg.repr, which)
     rng = np.random.default_rng(0)
@@ -70,8 +67,7 @@ def repr_rate(cfg: Config, which: str, samples: int) -> float:
         size = cfg.env.image_size  # frames are stored channels-first, as uint8
         array = rng.integers(0, 256, (samples + 64, 3, size, size), dtype=np.uint8)
     train, val = Split(array, np.arange(samples)), Split(array, np.arange(samples, samples + 64))
-    threads = cfg.torch_threads or (1 if which == "action" else torch.get_num_threads())
-    with tempfile.TemporaryDirectory() as tmp, torch_threads(threads):
+    with tempfile.TemporaryDirectory() as tmp, torch_threads(training_threads(cfg, which)):
         model = new_model(cfg, which, n_actions)
         start = time.perf_counter()
         fit(model, train, val, epochs=1, batch_size=mcfg.batch_size, learning_rate=mcfg.learning_rate, seed=0,
@@ -178,8 +174,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="runs_dir for the artifacts the measurements need")
     parser.add_argument("--no-write", action="store_true", help="print only")
     args = parser.parse_args(argv)
-    command = "nice -n 10 .venv/bin/python bench/throughput.py " + shlex.join(sys.argv[1:] if argv is None else argv)
-    print(f"command: {command}\nmachine (before): {machine()}", flush=True)
+    command = announce("throughput.py", argv)
     rates: dict[str, tuple[float, str]] = {}
     for preset in args.presets or list_presets():
         for key, (value, unit) in preset_rates(preset, args).items():

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from plls_bench.config import BUDGET_NAMES, ConfigError
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile
-from plls_bench.runs import config_hash, read_json
+from plls_bench.runs import Run, config_hash, read_json
 
 LAUNCHERS = ("local", "joblib", "slurm")
 EXIT_INTERRUPTED = 130
@@ -92,12 +92,12 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
         if plan.experiment not in filmed or not plan.trials:
             continue
         trial = plan.trials[0]
-        status = read_json(trial.run_dir / "status.json") or {}
-        if status.get("state") != "done" or status.get("config_hash") != config_hash(trial.cfg):
+        run_hash = config_hash(trial.cfg)
+        if not Run(trial.run_dir).is_done(run_hash):
             print(f"[reproduce] {plan.experiment}: no filmstrip, seed={trial.seed} is not done", flush=True)
             continue
         meta = read_json(trial.run_dir / "filmstrip" / "filmstrip.json") or {}
-        if meta.get("run_config_hash") == status["config_hash"] and meta.get("run_status") == "done":
+        if meta.get("run_config_hash") == run_hash and meta.get("run_status") == "done":
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue
         cap = trial.cfg.budget.eval_max_steps

@@ -49,6 +49,13 @@ def _episode_steps(data: RandomPolicyData) -> np.ndarray:
     return np.arange(len(data)) - first
 
 
+def training_threads(cfg: Config, which: str) -> int:
+    """Intra-op threads for training V_s or V_a. V_a's matmuls are tiny: a second thread only adds
+    synchronisation, and on a busy 2-core machine it made epochs 10x slower (15 s vs 1.2 s). An
+    explicit ``torch_threads`` wins."""
+    return cfg.torch_threads or (1 if which == "action" else torch.get_num_threads())
+
+
 def build(cfg: Config, which: str, out: Path) -> None:
     """Train ``cfg``'s ``which`` model and write every artifact file into ``out``."""
     began = time.perf_counter()
@@ -59,10 +66,7 @@ def build(cfg: Config, which: str, out: Path) -> None:
     final = artifact_path(cfg.runs_dir, KINDS[which], repr_key(cfg, which))
     resume = final.parent / f".{final.name}.partial" / "resume.pt"  # survives a kill; removed when done
     resume.parent.mkdir(parents=True, exist_ok=True)
-    # V_a's matmuls are tiny: a second intra-op thread only adds synchronisation, and on a busy
-    # 2-core machine it made epochs 10x slower (15 s vs 1.2 s). An explicit torch_threads wins.
-    threads = cfg.torch_threads or (1 if which == "action" else torch.get_num_threads())
-    with torch.random.fork_rng(devices=[]), torch_threads(threads):  # randomness stays in here
+    with torch.random.fork_rng(devices=[]), torch_threads(training_threads(cfg, which)):  # randomness stays in here
         torch.manual_seed(seed)
         model = new_model(cfg, which, data.actions.shape[1]).to(device)
         history = fit(model, train, val, epochs=cfg.budget.epochs_for(which), batch_size=mcfg.batch_size,
