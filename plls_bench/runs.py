@@ -28,6 +28,13 @@ STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
 SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
 # Config keys that do not change what a run computes: left out of the config hash.
 HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
+# Keys added after runs were recorded: at these values (which compute what the runs before the key
+# computed) they are left out of the hash, so those runs and their committed records keep their
+# identity. A key set to anything else is hashed like every other.
+HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
+    "algo.ppo.use_sde": False, "algo.ppo.sde_sample_freq": 0,
+    "algo.ppo.normalize_obs": False, "algo.ppo.normalize_reward": False,
+}
 
 
 # --------------------------------------------------------------------------- atomic files
@@ -117,10 +124,33 @@ def stable_hash(obj: Any, length: int = 16) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:length]
 
 
+def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLUDED_KEYS) -> dict[str, Any]:
+    """What identifies a config: less the ``excluded`` top-level keys and the keys of
+    :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values."""
+    data = {k: v for k, v in config.items() if k not in excluded}
+    for dotted, neutral in HASH_NEUTRAL_DEFAULTS.items():
+        *parents, leaf = dotted.split(".")
+        node: Any = data
+        for part in parents:
+            node = node.get(part) if isinstance(node, dict) else None
+        if isinstance(node, dict) and leaf in node and node[leaf] == neutral:
+            node = _copy_path(data, parents)
+            del node[leaf]
+    return data
+
+
+def _copy_path(data: dict[str, Any], parents: list[str]) -> dict[str, Any]:
+    """Shallow-copy the dicts along ``parents`` (so the caller's config is never changed); the last."""
+    node = data
+    for part in parents:
+        node[part] = dict(node[part])
+        node = node[part]
+    return node
+
+
 def config_hash(cfg: Any) -> str:
-    """Identity of what a run computes: its config less :data:`HASH_EXCLUDED_KEYS`."""
-    data = {k: v for k, v in config_dict(cfg).items() if k not in HASH_EXCLUDED_KEYS}
-    return stable_hash(data)
+    """Identity of what a run computes: :func:`hashed_config` of its config."""
+    return stable_hash(hashed_config(config_dict(cfg)))
 
 
 # --------------------------------------------------------------------------- paths

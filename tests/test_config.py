@@ -25,8 +25,10 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"+study={name}", "runner=study", "repr/action=vae"]
     if group == "filmstrip":  # one per task, named after it
         return [f"+filmstrip={name}", f"env={name}"]
+    if group == "algo/exploration":  # PPO's exploration settings; none goes with the other learners
+        return ["algo=none"] if name == "none" else ["algo=ppo", "runner=ppo", f"algo/exploration={name}"]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
-        extra = ["runner=ppo"] if name == "ppo" else []
+        extra = ["runner=ppo"] if name.startswith("ppo") else []
         extra += ["env=mountaincar"] if group == "algo" and not name.startswith("dbc") else []
         extra += ["env=cheetah", "runner=dbc"] if name.startswith("dbc") else []
         extra += ["env=carracing"] if group == "repr/state" and name == "vae" else []  # V_s needs frames
@@ -38,7 +40,10 @@ def overrides_for(yaml_path: Path) -> list[str]:
         parent = group.removesuffix("/per_env")
         runner = [f"runner={first}"] if parent == "algo" else []
         return [f"{parent}={first}", f"env={second}", *runner]
-    if group == "budget/per_algo":  # <algo>_<env>_<profile>
+    if group == "budget/per_exploration":  # <env>_<exploration>_<profile>
+        env, exploration, profile = name.split("_")
+        return ["algo=ppo", "runner=ppo", f"algo/exploration={exploration}", f"env={env}", f"budget={profile}"]
+    if group in ("budget/per_algo", "budget/per_recipe"):  # <algo>_<env>_<profile>
         algo, env, profile = name.rsplit("_", 2)  # the algo choice may hold "_" (dbc_readme)
         return [f"algo={algo}", f"runner={algo.split('_')[0]}", f"env={env}", f"budget={profile}"]
     raise AssertionError(f"no composition rule for {rel}: add one to tests/test_config.py")

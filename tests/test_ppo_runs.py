@@ -67,12 +67,12 @@ def test_preset_runs_end_to_end_at_smoke_budget(preset: str, shared_runs: Path) 
     assert set(params["modules"]) == {"policy", *frozen}, "total counts every module run, frozen ones too"
     assert params["total"] == sum(m["total"] for m in params["modules"].values())
     assert (params["total"] > params["trainable"]) == bool(frozen)
-    loaded_cfg, model = load_trained(run_dir)
-    assert loaded_cfg == cfg
+    trained = load_trained(run_dir)
+    assert trained.cfg == cfg
     venv = build_vec_env(cfg, 1, seed=0)
-    actions, _ = model.predict(venv.reset(), deterministic=True)
+    actions = trained.act(venv.reset())
     venv.close()
-    assert actions.shape == (1, *model.action_space.shape)
+    assert actions.shape == (1, *trained.model.action_space.shape)
 
 
 @pytest.mark.slow

@@ -108,10 +108,10 @@ def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
     from plls_bench.train.agent import load_trained
     from plls_bench.train.checkpoint import latest
 
-    cfg, model = load_trained(run_dir, device)
+    trained = load_trained(run_dir, device)
     found = latest(run_dir)
     assert found is not None  # load_trained raised otherwise
-    return cfg, lambda obs: model.predict(obs, deterministic=True)[0], found[0].name
+    return trained.cfg, trained.act, found[0].name
 
 
 def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:

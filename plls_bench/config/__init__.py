@@ -93,7 +93,8 @@ class Config(Validated):
         images = self.env.pixels and self.repr.state.kind == "none"
         want = "paper_cnn" if images else "mlp"
         seen = "images" if images else "vectors"
-        check(ppo.features_extractor == want, "algo.ppo.features_extractor",
+        fits = ppo.features_extractor == want or (not images and ppo.features_extractor == "separate_mlp")
+        check(fits, "algo.ppo.features_extractor",
               f"{ppo.features_extractor} does not fit the policy's observations ({seen}: env={self.env.name}, "
               f"repr.state={self.repr.state.kind}); use {want}")
 

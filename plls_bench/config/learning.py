@@ -10,7 +10,7 @@ from plls_bench.config.checks import Validated, check, check_choice, check_fract
 
 ALGO_NAMES = ("ppo", "dbc", "none")
 BUDGET_NAMES = ("smoke", "quick", "paper")
-FEATURE_EXTRACTORS = ("mlp", "paper_cnn")
+FEATURE_EXTRACTORS = ("mlp", "paper_cnn", "separate_mlp")
 PPO_ACTIVATIONS = ("tanh", "relu")  # train/networks.py builds these
 
 
@@ -22,7 +22,14 @@ class PPOConfig(Validated):
     The paper's networks share one trunk between policy and value (Sec. 5.1, 5.2). In SB3 that is a
     features extractor shared by actor and critic with linear heads: ``mlp`` is an MLP of
     ``policy_hidden`` on vector observations; ``paper_cnn`` is ``cnn_channels`` conv layers
-    followed by ``cnn_hidden`` fully connected layers on (C, H, W) images.
+    followed by ``cnn_hidden`` fully connected layers on (C, H, W) images. ``separate_mlp`` is SB3's
+    own ``MlpPolicy`` (separate pi and vf MLPs of ``policy_hidden``), for recipes that are not the
+    paper's, such as rl-baselines3-zoo's.
+
+    Exploration and normalisation (the paper is silent on both) are off by default: ``use_sde``
+    switches SB3's Gaussian to generalized state-dependent exploration (gSDE), whose noise matrix
+    is resampled every ``sde_sample_freq`` steps (0: once per rollout, SB3's -1);
+    ``normalize_obs`` / ``normalize_reward`` wrap the training env in SB3's ``VecNormalize``.
     """
 
     n_steps: int = MISSING
@@ -45,8 +52,17 @@ class PPOConfig(Validated):
     cnn_hidden: list[int] = field(default_factory=lambda: [32, 32])
     log_std_init: float = 0.0
     ortho_init: bool = True
+    use_sde: bool = False
+    sde_sample_freq: int = 0
+    normalize_obs: bool = False
+    normalize_reward: bool = False
     vec_env: str = "dummy"
     eval_envs: int = 1
+
+    @property
+    def normalized(self) -> bool:
+        """Whether the training env is wrapped in ``VecNormalize``."""
+        return self.normalize_obs or self.normalize_reward
 
     @property
     def steps_per_iteration(self) -> int:
@@ -70,6 +86,12 @@ class PPOConfig(Validated):
         check_choice(self.features_extractor, FEATURE_EXTRACTORS, "algo.ppo.features_extractor")
         check_choice(self.activation, PPO_ACTIVATIONS, "algo.ppo.activation")
         check_choice(self.vec_env, ("dummy", "subproc"), "algo.ppo.vec_env")
+        check(isinstance(self.sde_sample_freq, int) and self.sde_sample_freq >= 0, "algo.ppo.sde_sample_freq",
+              f"must be an int >= 0 (0 = resample the gSDE noise once per rollout), got {self.sde_sample_freq!r}")
+        check(self.use_sde or self.sde_sample_freq == 0, "algo.ppo.sde_sample_freq",
+              f"{self.sde_sample_freq} has no effect without algo.ppo.use_sde=true")
+        check(self.features_extractor != "separate_mlp" or len(self.policy_hidden) > 0, "algo.ppo.policy_hidden",
+              "separate_mlp needs at least one hidden layer")
         check(len(self.cnn_kernel_sizes) == len(self.cnn_channels), "algo.ppo.cnn_kernel_sizes",
               "needs one kernel size per entry of algo.ppo.cnn_channels")
         for name in ("policy_hidden", "cnn_channels", "cnn_kernel_sizes", "cnn_hidden"):

@@ -2,9 +2,11 @@
 parameter accounting, and loading a trained policy back from a run directory."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
@@ -16,8 +18,9 @@ from plls_bench.config import Config
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
 from plls_bench.runs import read_json
-from plls_bench.train.checkpoint import latest
+from plls_bench.train.checkpoint import latest, normalization
 from plls_bench.train.networks import policy_kwargs
+from plls_bench.train.normalize import ObsMap, frozen_obs_map
 
 
 def build_vec_env(cfg: Config, n_envs: int, seed: int) -> VecEnv:
@@ -36,6 +39,7 @@ def new_model(cfg: Config, venv: VecEnv) -> PPO:
                batch_size=ppo.batch_size, n_epochs=ppo.n_epochs, gamma=ppo.gamma,
                gae_lambda=ppo.gae_lambda, clip_range=ppo.clip_range, ent_coef=ppo.ent_coef,
                vf_coef=ppo.vf_coef, max_grad_norm=ppo.max_grad_norm, policy_kwargs=policy_kwargs(ppo),
+               use_sde=ppo.use_sde, sde_sample_freq=ppo.sde_sample_freq if ppo.sde_sample_freq else -1,
                device=cfg.device, verbose=0)
 
 
@@ -49,18 +53,34 @@ def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str
     return modules, {name: torch.zeros(1, *shapes[name]) for name in modules}
 
 
-def load_trained(run_dir: str | Path, device: str = "cpu") -> tuple[Config, PPO]:
-    """The run's typed config and its last checkpointed policy (the final one once the run is
-    ``done``). The policy acts on ``build_vec_env(cfg, ...)`` observations (latent z with V_s) and
-    its actions are what that env's ``step`` takes (latent e with V_a): roll it out through
-    ``build_vec_env`` or ``wrap_latent`` so the frozen V_s / V_a are applied as in training."""
+@dataclass(frozen=True)
+class Trained:
+    """A run's typed config, its last checkpointed PPO and the frozen observation normalisation
+    it was trained with (identity unless ``algo.ppo.normalize_obs``)."""
+
+    cfg: Config
+    model: PPO
+    normalize_obs: ObsMap
+
+    def act(self, obs: np.ndarray, deterministic: bool = True) -> np.ndarray:
+        """Actions for ``build_vec_env`` observations (normalised here, frozen, as in evaluation)."""
+        return self.model.predict(self.normalize_obs(obs), deterministic=deterministic)[0]
+
+
+def load_trained(run_dir: str | Path, device: str = "cpu") -> Trained:
+    """The run's last checkpointed policy (the final one once the run is ``done``). It acts on
+    ``build_vec_env(cfg, ...)`` observations (latent z with V_s) through :meth:`Trained.act`, which
+    applies the saved VecNormalize statistics frozen; its actions are what that env's ``step``
+    takes (latent e with V_a): roll it out through ``build_vec_env`` or ``wrap_latent`` so the
+    frozen V_s / V_a are applied as in training."""
     record = read_json(Path(run_dir) / "config.json")
     if record is None:
         raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
     found = latest(Path(run_dir))
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
-    return config_from_dict(record["config"]), PPO.load(found[0], device=device)
+    return Trained(config_from_dict(record["config"]), PPO.load(found[0], device=device),
+                   frozen_obs_map(normalization(Path(run_dir))))
 
 
 def sb3_metrics(values: dict[str, Any]) -> dict[str, float]:

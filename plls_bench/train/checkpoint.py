@@ -3,12 +3,13 @@
 Layout under ``<run>/checkpoints/``::
 
     ppo-<iteration>.zip   stable-baselines3's own format (``PPO.load`` reads it)
+    vecnormalize-<iteration>.json  VecNormalize statistics, only with algo.ppo.normalize_*
     latest.json           written last and atomically: the commit point of a checkpoint
 
 ``latest.json`` holds the progress (iteration, agent steps, wall time) and the RNG states of
 python, numpy's global generator (SB3 shuffles minibatches with it) and torch (action sampling),
 and names the zip it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
-zip intact; older zips are deleted only after the new ``latest.json`` is in place.
+zip intact; older files are deleted only after the new ``latest.json`` is in place.
 """
 from __future__ import annotations
 
@@ -55,15 +56,21 @@ def set_rng_state(state: dict[str, Any]) -> None:
     torch.set_rng_state(torch.from_numpy(raw))
 
 
-def save(run: Run, model: PPO, progress: Progress) -> None:
-    """Checkpoint ``model`` at ``progress``; committed when ``latest.json`` is replaced."""
+def save(run: Run, model: PPO, progress: Progress, normalization: bytes | None = None) -> None:
+    """Checkpoint ``model`` (and VecNormalize statistics, when given) at ``progress``; committed
+    when ``latest.json`` is replaced."""
     name = f"ppo-{progress.iteration:07d}.zip"
     buffer = BytesIO()
     model.save(buffer, exclude=_NOT_SAVED)
     atomic_write_bytes(run.checkpoints_dir / name, buffer.getvalue())
-    run.write_json(f"checkpoints/{LATEST}", {"model": name, "progress": asdict(progress), "rng": rng_state()})
-    for old in run.checkpoints_dir.glob("ppo-*.zip"):
-        if old.name != name:
+    stats = None
+    if normalization is not None:
+        stats = f"vecnormalize-{progress.iteration:07d}.json"
+        atomic_write_bytes(run.checkpoints_dir / stats, normalization)
+    run.write_json(f"checkpoints/{LATEST}", {"model": name, "normalization": stats,
+                                             "progress": asdict(progress), "rng": rng_state()})
+    for old in [*run.checkpoints_dir.glob("ppo-*.zip"), *run.checkpoints_dir.glob("vecnormalize-*.json")]:
+        if old.name not in (name, stats):
             old.unlink(missing_ok=True)
 
 
@@ -76,3 +83,16 @@ def latest(run_path: Path) -> tuple[Path, Progress, dict[str, Any]] | None:
     if not zip_path.is_file():
         raise FileNotFoundError(f"{zip_path} named by {LATEST} is missing; the checkpoint is corrupt")
     return zip_path, Progress(**record["progress"]), record["rng"]
+
+
+def normalization(run_path: Path) -> bytes | None:
+    """The VecNormalize statistics of the last committed checkpoint, or None (normalisation off,
+    or a checkpoint written before the suite had it)."""
+    record = read_json(Path(run_path) / "checkpoints" / LATEST)
+    name = (record or {}).get("normalization")
+    if not name:
+        return None
+    path = Path(run_path) / "checkpoints" / name
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} named by {LATEST} is missing; the checkpoint is corrupt")
+    return path.read_bytes()

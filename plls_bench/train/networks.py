@@ -68,7 +68,12 @@ class PaperCNN(BaseFeaturesExtractor):
 
 
 def policy_kwargs(ppo: PPOConfig) -> dict[str, Any]:
-    """SB3 ``policy_kwargs`` building the configured shared trunk with linear heads."""
+    """SB3 ``policy_kwargs`` building the configured shared trunk with linear heads, or SB3's own
+    ``MlpPolicy`` networks (``separate_mlp``: separate pi and vf MLPs, as rl-baselines3-zoo runs)."""
+    if ppo.features_extractor == "separate_mlp":
+        hidden = list(ppo.policy_hidden)
+        return {"net_arch": {"pi": hidden, "vf": hidden}, "activation_fn": ACTIVATIONS[ppo.activation],
+                "log_std_init": ppo.log_std_init, "ortho_init": ppo.ortho_init}
     if ppo.features_extractor == "mlp":
         extractor: type[BaseFeaturesExtractor] = SharedMLP
         kwargs: dict[str, Any] = {"hidden": list(ppo.policy_hidden), "activation": ppo.activation}

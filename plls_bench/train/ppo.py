@@ -26,7 +26,7 @@ from plls_bench.evaluate import run_episodes
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.runs import Run
 from plls_bench.seeding import Seeds, derive_seeds, sub_seed
-from plls_bench.train import checkpoint
+from plls_bench.train import checkpoint, normalize
 from plls_bench.train.agent import accounting, build_vec_env, new_model, sb3_metrics
 from plls_bench.train.checkpoint import Progress
 
@@ -86,9 +86,10 @@ class EpisodeStats(BaseCallback):
 def run(cfg: Config, run: Run) -> None:
     """Train PPO for ``budget.train_env_steps``, evaluating every ``budget.eval_every_env_steps``."""
     assert cfg.algo.ppo is not None
+    ppo = cfg.algo.ppo
     seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
-    train_env = build_vec_env(cfg, cfg.algo.ppo.n_envs, seeds.train)
-    eval_env = build_vec_env(cfg, min(cfg.algo.ppo.eval_envs, cfg.budget.eval_episodes), seeds.eval)
+    train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, seeds.train), ppo)
+    eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes), seeds.eval), ppo)
     try:
         _train(cfg, run, Plan.of(cfg), seeds, train_env, eval_env)
     finally:
@@ -108,7 +109,7 @@ def _train(cfg: Config, run: Run, plan: Plan, seeds: Seeds, train_env: VecEnv, e
 
     if fresh:
         _log_eval(cfg, run, model, eval_env, seeds, position(0))
-        checkpoint.save(run, model, position(0))
+        checkpoint.save(run, model, position(0), normalize.state_json(train_env))
     stats = EpisodeStats()
     with tqdm(total=plan.iterations, initial=progress.iteration, unit="iter", disable=not cfg.progress,
               desc=f"ppo {cfg.experiment} seed={cfg.seed}") as bar:
@@ -125,7 +126,7 @@ def _train(cfg: Config, run: Run, plan: Plan, seeds: Seeds, train_env: VecEnv, e
             run.log("train", record)
             extra = _log_eval(cfg, run, model, eval_env, seeds, done) if plan.eval_at(iteration) else {}
             _dump_to_sb3(model, {**record, **extra}, done)
-            checkpoint.save(run, model, position(iteration))
+            checkpoint.save(run, model, position(iteration), normalize.state_json(train_env))
             bar.set_postfix({k.split("/")[1]: round(v, 2) for k, v in extra.items()}, refresh=False)
             bar.update(1)
 
@@ -141,6 +142,9 @@ def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tu
     for stream in ("train", "eval"):
         run.truncate_metrics(stream, lambda r: r["iteration"] <= progress.iteration)
     venv.seed(sub_seed(train_seed, progress.iteration))
+    saved_stats = checkpoint.normalization(run.path)
+    if saved_stats is not None:
+        normalize.restore(venv, saved_stats)
     model = PPO.load(zip_path, env=venv, device=cfg.device)
     checkpoint.set_rng_state(rng)
     return model, progress, False
@@ -153,8 +157,10 @@ def _steps(cfg: Config, at: Progress) -> dict[str, Any]:
 
 def _log_eval(cfg: Config, run: Run, model: PPO, venv: VecEnv, seeds: Seeds, at: Progress) -> dict[str, float]:
     """Deterministic and stochastic test episodes (the same seeds at every evaluation); the
-    stochastic ones sample from their own torch stream, so evaluating never shifts training's."""
+    stochastic ones sample from their own torch stream, so evaluating never shifts training's.
+    With VecNormalize, the test env gets the training statistics frozen at this point."""
     n, cap = cfg.budget.eval_episodes, cfg.budget.eval_max_steps
+    normalize.sync(model.get_env(), venv)
     greedy = run_episodes(venv, lambda obs: model.predict(obs, deterministic=True)[0], n, seeds.eval, cap)
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(sub_seed(seeds.eval, _EVAL_SAMPLING, at.iteration))
