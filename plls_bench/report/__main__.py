@@ -1,4 +1,4 @@
-"""``python -m plls_bench.report [--runs results/runs] [--out results] [--only ID ...] [--list]``
+"""``python -m plls_bench.report [--runs results/runs] [--records DIR] [--out results] [--only ID ...] [--list]``
 
 Regenerates every table and figure of the paper from run directories (see ``registry.py``).
 Exit status: 0 when every id rendered (gaps are reported, not errors), 1 when an id failed to
@@ -11,6 +11,7 @@ import logging
 import shlex
 import sys
 
+from plls_bench.records import records_dir_for
 from plls_bench.report.collect import PAPER_DIR, ReportError, render_all
 from plls_bench.report.registry import ENTRIES, builder_name
 from plls_bench.report.returns import DEFAULT_X_AXIS, X_AXES
@@ -29,6 +30,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m plls_bench.report", description=__doc__.split("\n\n")[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", default="results/runs", help="root of the run directories (read only)")
+    parser.add_argument("--records", default=None,
+                        help="committed run records read beside the runs (default: 'records' beside --runs)")
+    parser.add_argument("--no-records", action="store_true", help="read the runs dir only")
     parser.add_argument("--out", default="results", help="where tables/, figures/, index.json and README.md go")
     parser.add_argument("--only", nargs="+", metavar="ID", help="regenerate only these ids (see --list)")
     parser.add_argument("--list", action="store_true", help="print the registry and exit")
@@ -42,8 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     command = shlex.join(["python", "-m", "plls_bench.report", *(sys.argv[1:] if argv is None else argv)])
     try:
+        records = None if args.no_records else (args.records or records_dir_for(args.runs))
         statuses = render_all(args.runs, args.out, args.only, args.x_axis, args.paper,
-                              progress=not args.no_progress, command=command)
+                              progress=not args.no_progress, command=command, records_dir=records)
     except ReportError as err:
         print(f"plls_bench.report: {err}", file=sys.stderr)
         return 2

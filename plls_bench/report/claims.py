@@ -176,6 +176,15 @@ def p_improvement(runs: Runs, claim: dict[str, str]) -> Estimate:
                     reach=min(a.last_x, b.last_x))
 
 
+def final_return(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """Mean over finished trials of the final evaluation's mean deterministic return (a baseline
+    checked against a published number)."""
+    per_trial = scores(runs, _curves(runs, claim["experiment"], claim)).final
+    if not len(per_trial):
+        raise NotJudged(f"no finished trials of {claim['experiment']}")
+    return _mean_estimate([float(v) for v in per_trial], "trial", _budget(runs, claim["experiment"], n=[len(per_trial)]))
+
+
 def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
     low, high = float(ci[0]), float(ci[1])
     return "" if math.isnan(low) else f" [{fmt(low)}, {'never' if math.isinf(high) else fmt(high)}]"
@@ -184,7 +193,7 @@ def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
 KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
     "repr_mse": repr_mse, "param_count": param_count, "steps_to_goal": steps_to_goal,
     "convergence": convergence_point, "ahead_from": ahead_point, "std_gap": std_gap,
-    "p_improvement": p_improvement, "study": study_metric,
+    "p_improvement": p_improvement, "study": study_metric, "final_return": final_return,
 }
 RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 

@@ -46,10 +46,12 @@ class IdStatus:
     error: str | None = None
 
 
-def check_inputs(runs_dir: Path, out_dir: Path, only: Iterable[str] | None, x_axis: str, paper_dir: Path) -> None:
+def check_inputs(runs_dir: Path, out_dir: Path, only: Iterable[str] | None, x_axis: str, paper_dir: Path,
+                 records_dir: Path | None = None) -> None:
     """One clear error for bad input, before any compute or write."""
-    if not runs_dir.is_dir():
-        raise ReportError(f"--runs {runs_dir}: no such directory")
+    if not runs_dir.is_dir() and not (records_dir is not None and records_dir.is_dir()):
+        raise ReportError(f"--runs {runs_dir}: no such directory"
+                          + (f" (and no records at {records_dir})" if records_dir is not None else ""))
     runs, out = runs_dir.resolve(), out_dir.resolve()
     if out == runs or runs in out.parents:
         raise ReportError(f"--out {out_dir} lies inside --runs {runs_dir}: the collector never writes there")
@@ -87,9 +89,10 @@ def write_output(entry: Entry, output: Output, out_dir: Path) -> list[str]:
     return [str(p.relative_to(out_dir)) for p in paths]
 
 
-def render_one(entry: Entry, runs_dir: Path, out_dir: Path, opts: Options) -> IdStatus:
+def render_one(entry: Entry, runs_dir: Path, out_dir: Path, opts: Options,
+               records_dir: Path | None = None) -> IdStatus:
     """Build and write one id; a failure is recorded in its status, never raised."""
-    runs = Runs(runs_dir)
+    runs = Runs(runs_dir, records_dir)
     status = IdStatus(entry.id, entry.ref, entry.title, entry.kind, "error", list(entry.experiments), entry.reads)
     try:
         output = entry.build(runs, entry, opts)
@@ -106,18 +109,22 @@ def render_one(entry: Entry, runs_dir: Path, out_dir: Path, opts: Options) -> Id
 
 def render_all(runs_dir: str | Path, out_dir: str | Path, only: Iterable[str] | None = None,
                x_axis: str = "iteration", paper_dir: str | Path = PAPER_DIR,
-               progress: bool = False, command: str = "") -> dict[str, IdStatus]:
-    """Render every registry id (or ``only`` those) and regenerate ``index.json`` and
-    ``README.md``; returns the status of each id rendered. The integration test's entry point."""
+               progress: bool = False, command: str = "",
+               records_dir: str | Path | None = None) -> dict[str, IdStatus]:
+    """Render every registry id (or ``only`` those) from the runs and, when given, the committed
+    records, and regenerate ``index.json`` and ``README.md``; returns the status of each id
+    rendered. The integration test's entry point."""
     runs_dir, out_dir, paper_dir = Path(runs_dir), Path(out_dir), Path(paper_dir)
+    records = None if records_dir is None else Path(records_dir)
     only = list(only) if only else None
-    check_inputs(runs_dir, out_dir, only, x_axis, paper_dir)
+    check_inputs(runs_dir, out_dir, only, x_axis, paper_dir, records)
     opts = Options(x_axis, paper_dir)
     entries = [BY_ID[i] for i in only] if only else list(ENTRIES)
     bar = tqdm(entries, disable=not progress, desc="report")
-    rendered = {entry.id: render_one(entry, runs_dir, out_dir, opts) for entry in bar}
+    rendered = {entry.id: render_one(entry, runs_dir, out_dir, opts, records) for entry in bar}
     index = _merge_index(out_dir / "index.json", rendered)
-    meta = {"runs": str(runs_dir), "x_axis": x_axis, "command": command}
+    meta = {"runs": str(runs_dir), "records": None if records is None else str(records), "x_axis": x_axis,
+            "command": command}
     atomic_write_json(out_dir / "index.json", {"meta": meta, "ids": [asdict(s) for s in index]})
     write_readme(out_dir, runs_dir, index, meta)
     return rendered

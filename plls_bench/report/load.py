@@ -4,6 +4,11 @@ Each registry id gets a fresh :class:`Runs` view; everything it could not read (
 seed, a torn jsonl line, a failed or unfinished run, a corrupt file) is recorded as a :class:`Gap`
 in that view, so the id reports exactly the gaps that touch it. Only the files listed in the
 README's "What each runner writes" table are read.
+
+Trials come from the runs dir and from the committed records (``plls_bench/records.py``). A local
+run replaces the record of the same seed when their configs agree; otherwise both compete as
+groups of one config, and the group of the highest budget wins, then the largest, then the local
+one: a smoke run on a fresh clone never hides real-budget records.
 """
 from __future__ import annotations
 
@@ -15,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from plls_bench.runs import HASH_EXCLUDED_KEYS, STATUS_DONE, read_json, scan_jsonl, stable_hash
+from plls_bench.config.learning import BUDGET_NAMES
+from plls_bench.runs import HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, STATUS_DONE, hashed_config, read_json, scan_jsonl, stable_hash
 
 DEFAULT_VARIANT = "default"
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
@@ -43,6 +49,7 @@ class Trial:
     path: Path
     state: str  # done | running | failed | unknown (no readable status.json)
     config: dict[str, Any]
+    source: str = "run"  # run (under the runs dir) | record (committed, under the records dir)
 
     def cfg(self, dotted: str, default: Any = None) -> Any:
         """A value of the run's resolved config by dotted key, e.g. ``algo.ppo.n_envs``."""
@@ -77,8 +84,9 @@ class Experiment:
 class Runs:
     """A read-only view of a runs dir that records every gap it meets."""
 
-    def __init__(self, runs_dir: str | Path) -> None:
+    def __init__(self, runs_dir: str | Path, records_dir: str | Path | None = None) -> None:
         self.root = Path(runs_dir)
+        self.records = None if records_dir is None else Path(records_dir)
         self.gaps: list[Gap] = []
         self._experiments: dict[tuple[str, str], Experiment] = {}
 
@@ -98,26 +106,29 @@ class Runs:
 
     def _scan(self, name: str, variant: str) -> Experiment:
         exp = Experiment(name, variant)
-        root = self.root / name / variant
-        if not root.is_dir():
-            self.gap(exp, None, f"no runs (expected {root})")
+        roots = [(self.root / name / variant, "run")]
+        if self.records is not None:
+            roots.append((self.records / name / variant, "record"))
+        if not any(root.is_dir() for root, _ in roots):
+            self.gap(exp, None, f"no runs (expected {roots[0][0]})")
             return exp
         candidates, seen = [], set()
-        for path in sorted(root.iterdir(), key=_seed_order):
-            match = _SEED_DIR.match(path.name)
-            if not path.is_dir() or not match:
-                self.gap(exp, None, f"{path.name}: not a seed=<k> run dir, ignored")
-                continue
-            seen.add(int(match.group(1)))
-            trial = self._trial(exp, int(match.group(1)), path)
-            if trial is not None:
-                candidates.append(trial)
+        for root, source in roots:
+            for path in sorted(root.iterdir(), key=_seed_order) if root.is_dir() else []:
+                match = _SEED_DIR.match(path.name)
+                if not path.is_dir() or not match:
+                    self.gap(exp, None, f"{path.name}: not a seed=<k> run dir, ignored")
+                    continue
+                seen.add(int(match.group(1)))
+                trial = self._trial(exp, int(match.group(1)), path, source)
+                if trial is not None and not _replaced(trial, candidates):
+                    candidates.append(trial)
         exp.trials = self._consistent(exp, candidates)
-        self._missing_seeds(exp, seen)
+        self._missing_seeds(exp, {t.seed for t in exp.trials} if self.records is not None else seen)
         return exp
 
-    def _trial(self, exp: Experiment, seed: int, path: Path) -> Trial | None:
-        probe = Trial(seed, path, "unknown", {})
+    def _trial(self, exp: Experiment, seed: int, path: Path, source: str = "run") -> Trial | None:
+        probe = Trial(seed, path, "unknown", {}, source)
         if not any(path.iterdir()):
             self.gap(exp, probe, "empty run dir")
             return None
@@ -127,7 +138,7 @@ class Runs:
             return None
         status = read_json(path / "status.json")
         state = status.get("state", "unknown") if isinstance(status, dict) else "unknown"
-        trial = Trial(seed, path, state, config["config"])
+        trial = Trial(seed, path, state, config["config"], source)
         if status is None:
             self.gap(exp, trial, "status.json missing or unreadable: state unknown, data used as is")
         elif state != STATUS_DONE:
@@ -136,19 +147,20 @@ class Runs:
         return trial
 
     def _consistent(self, exp: Experiment, trials: list[Trial]) -> list[Trial]:
-        """Keep the largest group of trials whose configs agree apart from the seed."""
+        """Keep one group of trials whose configs agree apart from the seed: the highest budget,
+        then the most trials, then local runs over records."""
         groups: dict[str, list[Trial]] = {}
         for trial in trials:
             groups.setdefault(_identity(trial.config), []).append(trial)
         if len(groups) <= 1:
-            return trials
-        keep = max(groups.values(), key=lambda g: (len(g), -g[0].seed))
+            return sorted(trials, key=lambda t: t.seed)
+        keep = max(groups.values(), key=lambda g: (_budget_rank(g[0]), len(g), g[0].source == "run", -g[0].seed))
         for group in groups.values():
             if group is not keep:
                 for trial in group:
                     diff = ", ".join(_diff(keep[0].config, trial.config)[:3])
                     self.gap(exp, trial, f"config differs from seed={keep[0].seed}'s ({diff}): excluded")
-        return keep
+        return sorted(keep, key=lambda t: t.seed)
 
     def _missing_seeds(self, exp: Experiment, seen: set[int]) -> None:
         expected = exp.cfg("budget.trials")
@@ -208,6 +220,18 @@ class Runs:
         return None
 
 
+def _replaced(trial: Trial, candidates: list[Trial]) -> bool:
+    """True when a local run of the same seed and config is already among ``candidates`` (local
+    runs are scanned first and win over their records)."""
+    ident = _identity(trial.config)
+    return any(c.seed == trial.seed and _identity(c.config) == ident for c in candidates)
+
+
+def _budget_rank(trial: Trial) -> int:
+    budget = trial.cfg("budget.name")
+    return BUDGET_NAMES.index(budget) if budget in BUDGET_NAMES else -1
+
+
 def _seed_order(path: Path) -> tuple[int, str]:
     """seed=2 before seed=10; odd names last."""
     match = _SEED_DIR.match(path.name)
@@ -215,7 +239,7 @@ def _seed_order(path: Path) -> tuple[int, str]:
 
 
 def _identity(config: dict[str, Any]) -> str:
-    return stable_hash({k: v for k, v in config.items() if k not in (*HASH_EXCLUDED_KEYS, "seed")})
+    return stable_hash(hashed_config(config, (*HASH_EXCLUDED_KEYS, "seed")))
 
 
 def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
@@ -229,7 +253,7 @@ def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
 
 def _diff(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     fa, fb = _flatten(a), _flatten(b)
-    keys = [k for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)
+    keys = [k for k in sorted(set(fa) | set(fb)) if fa.get(k, HASH_NEUTRAL_DEFAULTS.get(k)) != fb.get(k, HASH_NEUTRAL_DEFAULTS.get(k))
             and k.split(".")[0] not in (*HASH_EXCLUDED_KEYS, "seed")]
     return [f"{k}: {fa.get(k)!r} vs {fb.get(k)!r}" for k in keys]
 

@@ -20,18 +20,19 @@ BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 STATUSES = ("ok", "partial", "empty", "error")  # partial = drawn, with gaps; empty = nothing to draw
 
 
-def _runs_summary(runs_dir: Path) -> list[str]:
-    """Budget profiles and producing commits of every run dir (read-only)."""
+def _runs_summary(runs_dir: Path, records_dir: Path | None = None) -> list[str]:
+    """Budget profiles and producing commits of every run dir and committed record (read-only)."""
     budgets: Counter[str] = Counter()
     commits: Counter[str] = Counter()
-    for path in iter_run_dirs(runs_dir):
+    roots = [runs_dir] + ([records_dir] if records_dir is not None else [])
+    for path in (p for root in roots for p in iter_run_dirs(root)):
         config = (read_json(path / "config.json") or {}).get("config", {})
         budgets[(config.get("budget") or {}).get("name", "unknown")] += 1
         provenance = read_json(path / "provenance.json") or {}
         sha = provenance.get("git_sha") or "unknown"
         commits[f"{sha[:10]}{' (dirty)' if provenance.get('git_dirty') else ''}"] += 1
     if not budgets:
-        return [f"- Runs: none found under `{runs_dir}`."]
+        return [f"- Runs: none found under `{'` or `'.join(map(str, roots))}`."]
     largest = max(budgets, key=lambda b: BUDGET_ORDER.index(b) if b in BUDGET_ORDER else -1)
     return [f"- Budget profile: **{largest}** (largest found); run dirs per profile: "
             + ", ".join(f"{b} {n}" for b, n in sorted(budgets.items())),
@@ -76,8 +77,9 @@ def build_readme(out_dir: Path, runs_dir: Path, index: list["IdStatus"], meta: d
              f"- Date: {time.strftime('%Y-%m-%d %H:%M %Z')}",
              f"- Collector commit: `{git['git_sha'] or 'unknown'}`"
              + (" (uncommitted changes)" if git["git_dirty"] else ""),
-             f"- Runs dir: `{runs_dir}`; curves drawn against `{meta['x_axis']}`",
-             *_runs_summary(runs_dir),
+             f"- Runs dir: `{runs_dir}`; committed records: `{meta.get('records') or 'not read'}`; "
+             f"curves drawn against `{meta['x_axis']}`",
+             *_runs_summary(runs_dir, Path(meta["records"]) if meta.get("records") else None),
              f"- Ids: {len(index)}: " + ", ".join(f"{counts.get(s, 0)} {s}" for s in STATUSES)
              + " (partial = drawn with gaps listed below it; empty = no runs to draw from)", ""]
     claims = next((s for s in index if s.id == "claims"), None)

@@ -11,11 +11,17 @@ from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
 S = Source
 EVAL = "metrics/eval.jsonl"
 MC_PLLS, MC_PPO = S("mountaincar_plls_ppo", "PL-LS + PPO"), S("mountaincar_ppo", "PPO", BASE_BLUE)
+# The paper is silent on exploration: Fig. 10 and 11 are drawn under SB3's Gaussian (literal) and gSDE.
+MC_PLLS_GSDE = S("mountaincar_plls_ppo_gsde", "PL-LS + PPO (gSDE)")
+MC_PPO_GSDE = S("mountaincar_ppo_gsde", "PPO (gSDE)", BASE_BLUE)
+MC_ZOO = S("mountaincar_ppo_zoo", "PPO, rl-baselines3-zoo recipe", BASE_BLUE)
 CR_PLLS, CR_PPO = S("carracing_plls_ppo", "PL-LS + PPO"), S("carracing_ppo", "PPO", BASE_BLUE)
 CH_PLLS, CH_DBC = S("cheetah_plls_dbc", "PL-LS + DBC"), S("cheetah_dbc", "DBC", BASE_BLUE)
 
-FIG10 = Entry("fig10", "Fig. 10", "MountainCar, average return", (MC_PLLS, MC_PPO),
-              fig_curves.return_curves, EVAL)
+FIG10 = Entry("fig10", "Fig. 10", "MountainCar, average return (SB3 Gaussian exploration, the literal reading)",
+              (MC_PLLS, MC_PPO), fig_curves.return_curves, EVAL)
+FIG10_GSDE = Entry("fig10_gsde", "Fig. 10 (gSDE)", "MountainCar, average return (gSDE exploration)",
+                   (MC_PLLS_GSDE, MC_PPO_GSDE), fig_curves.return_curves, EVAL)
 FIG18 = Entry("fig18", "Fig. 18", "CarRacing, average return", (CR_PLLS, CR_PPO),
               fig_curves.return_curves, EVAL)
 CR_VS = S("carracing_ppo_vs", "PPO + V_s only", VS_GREEN)
@@ -44,8 +50,11 @@ ENTRIES: tuple[Entry, ...] = (
           (S("mountaincar_generalisation", "study"),), fig_latent.generalisation,
           "studies/generalisation.npz, metrics/study.json", size=(13.0, 4.5)),
     FIG10,
-    Entry("fig11", "Fig. 11", "MountainCar, the learned PL-LS + PPO policy", (MC_PLLS,), fig_images.filmstrip,
-          "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
+    FIG10_GSDE,
+    Entry("fig11", "Fig. 11", "MountainCar, the learned PL-LS + PPO policy (gSDE exploration)", (MC_PLLS_GSDE,),
+          fig_images.filmstrip, "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
+    Entry("fig11_gaussian", "Fig. 11 (Gaussian)", "MountainCar, the PL-LS + PPO policy (SB3 Gaussian exploration)",
+          (MC_PLLS,), fig_images.filmstrip, "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
     Entry("fig12", "Fig. 12", "Structure of V_s", (S("carracing_vs", "V_s"),), fig_arch.architecture,
           "metrics/architecture.json, metrics/params.json", size=(14.0, 5.0)),
     Entry("fig13", "Fig. 13", "CarRacing V_s, training loss per epoch", (S("carracing_vs", "V_s"),),
@@ -67,11 +76,12 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("fig22", "Fig. 22", "Cheetah run, the learned PL-LS + DBC policy", (CH_PLLS,), fig_images.filmstrip,
           "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
     Entry("stats", "Return statistics", "IQM, mean and probability of improvement for every return comparison",
-          tuple(dict.fromkeys(s for e in (FIG10, FIG18, FIG20, FIG21) for s in e.sources)),
-          partial(comparisons.return_statistics, comparisons=(FIG10, FIG18, FIG20, FIG21)), EVAL, kind="table"),
+          tuple(dict.fromkeys(s for e in (FIG10, FIG10_GSDE, FIG18, FIG20, FIG21) for s in e.sources)),
+          partial(comparisons.return_statistics, comparisons=(FIG10, FIG10_GSDE, FIG18, FIG20, FIG21)), EVAL,
+          kind="table"),
     Entry("claims", "Paper vs suite", "Every quantitative claim of the paper beside the suite's value",
-          (MC_PLLS, MC_PPO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC, S("mountaincar_va", "V_a"),
-           S("carracing_va", "V_a")),
+          (MC_PLLS, MC_PPO, MC_PLLS_GSDE, MC_PPO_GSDE, MC_ZOO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC,
+           S("mountaincar_va", "V_a"), S("carracing_va", "V_a")),
           claims.claims_table, "every file above; results/paper/claims.csv", kind="table"),
 )
 BY_ID = {entry.id: entry for entry in ENTRIES}
