@@ -28,6 +28,11 @@ STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
 SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
 # Config keys that do not change what a run computes: left out of the config hash.
 HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
+# Config keys hashed at a fixed value, whatever the config says. ``device`` changes where a run
+# computes, not what it computes statistically (CPU and GPU kernels differ in rounding only), so it
+# must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
+# value instead of dropping the key keeps the hashes of existing runs, which stay done/resumable.
+HASH_PINNED_KEYS = {"device": "cpu"}
 
 
 # --------------------------------------------------------------------------- atomic files
@@ -118,8 +123,9 @@ def stable_hash(obj: Any, length: int = 16) -> str:
 
 
 def config_hash(cfg: Any) -> str:
-    """Identity of what a run computes: its config less :data:`HASH_EXCLUDED_KEYS`."""
-    data = {k: v for k, v in config_dict(cfg).items() if k not in HASH_EXCLUDED_KEYS}
+    """Identity of what a run computes: its config less :data:`HASH_EXCLUDED_KEYS`, with
+    :data:`HASH_PINNED_KEYS` at their pinned values."""
+    data = {k: HASH_PINNED_KEYS.get(k, v) for k, v in config_dict(cfg).items() if k not in HASH_EXCLUDED_KEYS}
     return stable_hash(data)
 
 

@@ -4,6 +4,11 @@ Values live in ``conf/`` (yaml, every key commented with its source); this modul
 defaults that are *not* paper settings, and validation. ``validate`` runs when Hydra's
 ``DictConfig`` is converted with ``OmegaConf.to_object`` (see :func:`to_config`), which the entry
 point does before it creates a run directory or starts any compute. Errors name the offending key.
+
+Validation checks what a config *is*, on any machine: recorded configs are validated again when
+they are read back (reports, filmstrips). Whether this machine *has* the device a config asks for
+is checked where a command is about to compute (:func:`plls_bench.devices.require_device`, from the
+CLI and the runners), so a run recorded with ``device=cuda`` stays readable on a CPU-only machine.
 """
 from __future__ import annotations
 
@@ -20,6 +25,7 @@ from plls_bench.config.learning import (ALGO_NAMES, BUDGET_NAMES, FEATURE_EXTRAC
                                         TRANSITION_MODELS, AlgoConfig, BudgetConfig, DBCConfig, PPOConfig)
 from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_ACTIVATIONS, ActionReprConfig,
                                      EnvConfig, ReprConfig, StateReprConfig)
+from plls_bench.devices import DEVICES
 
 __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "ENV_NAMES", "FEATURE_EXTRACTORS", "LATENT_CHOICES",
            "PPO_ACTIVATIONS", "REPR_KINDS", "RUNNERS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
@@ -41,7 +47,7 @@ class Config(Validated):
     seed: int = 0
     data_seed: int = 0
     runs_dir: str = "results/runs"
-    device: str = "cpu"
+    device: str = "auto"
     torch_threads: int = 0
     progress: bool = True
     env: EnvConfig = field(default_factory=EnvConfig)
@@ -55,7 +61,7 @@ class Config(Validated):
         check_choice(self.runner, RUNNERS, "runner")
         check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
         check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
-        check_choice(self.device, ("cpu", "cuda", "auto"), "device")
+        check_choice(self.device, DEVICES, "device")
         check_nonnegative(self.torch_threads, "torch_threads")
         check(bool(self.experiment) and "/" not in self.experiment, "experiment",
               f"must be a non-empty name without '/', got {self.experiment!r}")

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from plls_bench.runs import HASH_EXCLUDED_KEYS, STATUS_DONE, read_json, scan_jsonl, stable_hash
+from plls_bench.runs import HASH_EXCLUDED_KEYS, HASH_PINNED_KEYS, STATUS_DONE, read_json, scan_jsonl, stable_hash
 
 DEFAULT_VARIANT = "default"
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
@@ -214,8 +214,12 @@ def _seed_order(path: Path) -> tuple[int, str]:
     return (int(match.group(1)), "") if match else (1 << 62, path.name)
 
 
+# Trials of one experiment may differ in these and still be pooled: the device a seed ran on too.
+_NOT_IDENTITY = (*HASH_EXCLUDED_KEYS, *HASH_PINNED_KEYS, "seed")
+
+
 def _identity(config: dict[str, Any]) -> str:
-    return stable_hash({k: v for k, v in config.items() if k not in (*HASH_EXCLUDED_KEYS, "seed")})
+    return stable_hash({k: v for k, v in config.items() if k not in _NOT_IDENTITY})
 
 
 def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
@@ -230,7 +234,7 @@ def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
 def _diff(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     fa, fb = _flatten(a), _flatten(b)
     keys = [k for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)
-            and k.split(".")[0] not in (*HASH_EXCLUDED_KEYS, "seed")]
+            and k.split(".")[0] not in _NOT_IDENTITY]
     return [f"{k}: {fa.get(k)!r} vs {fb.get(k)!r}" for k in keys]
 
 
