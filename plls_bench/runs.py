@@ -4,7 +4,7 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
 
     .hydra/               Hydra's own record of the composed config and overrides
     config.json           the typed, resolved config and its hash (what the collector reads)
-    provenance.json       git sha + dirty flag, package versions, command, host, device, starts
+    provenance.json       git sha + dirty flag, package versions, command, host, device used, starts
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
     checkpoints/          whatever the runner needs to resume
     status.json           written last and atomically: running -> done | failed (with the error)
@@ -178,7 +178,7 @@ class Run:
         from plls_bench.provenance import collect_provenance  # lazy: imports torch & friends
 
         previous = read_json(self.path / "provenance.json") or {}
-        starts = list(previous.get("starts", [])) + [collect_provenance()]
+        starts = list(previous.get("starts", [])) + [collect_provenance(getattr(cfg, "device", "auto"))]
         atomic_write_json(self.path / "provenance.json", {**starts[0], "starts": starts})
 
     def read_config(self) -> dict[str, Any] | None:

@@ -13,6 +13,7 @@ from torch import nn
 
 from plls_bench.composition import config_from_dict
 from plls_bench.config import Config
+from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
 from plls_bench.runs import read_json
@@ -36,7 +37,7 @@ def new_model(cfg: Config, venv: VecEnv) -> PPO:
                batch_size=ppo.batch_size, n_epochs=ppo.n_epochs, gamma=ppo.gamma,
                gae_lambda=ppo.gae_lambda, clip_range=ppo.clip_range, ent_coef=ppo.ent_coef,
                vf_coef=ppo.vf_coef, max_grad_norm=ppo.max_grad_norm, policy_kwargs=policy_kwargs(ppo),
-               device=cfg.device, verbose=0)
+               device=resolve_device(cfg.device), verbose=0)
 
 
 def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str, torch.Tensor]]:
@@ -49,7 +50,7 @@ def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str
     return modules, {name: torch.zeros(1, *shapes[name]) for name in modules}
 
 
-def load_trained(run_dir: str | Path, device: str = "cpu") -> tuple[Config, PPO]:
+def load_trained(run_dir: str | Path, device: str = "auto") -> tuple[Config, PPO]:
     """The run's typed config and its last checkpointed policy (the final one once the run is
     ``done``). The policy acts on ``build_vec_env(cfg, ...)`` observations (latent z with V_s) and
     its actions are what that env's ``step`` takes (latent e with V_a): roll it out through
@@ -60,7 +61,7 @@ def load_trained(run_dir: str | Path, device: str = "cpu") -> tuple[Config, PPO]
     found = latest(Path(run_dir))
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
-    return config_from_dict(record["config"]), PPO.load(found[0], device=device)
+    return config_from_dict(record["config"]), PPO.load(found[0], device=resolve_device(device))
 
 
 def sb3_metrics(values: dict[str, Any]) -> dict[str, float]:
