@@ -53,7 +53,8 @@ def collect_rate(cfg: Config, steps: int) -> float:
 
 def repr_rate(cfg: Config, which: str, samples: int) -> float:
     """Training samples per second of one V_s / V_a epoch on random inputs of the task's shape."""
-    from plls_bench.repr import action_dim, new_model, resolve_device
+    from plls_bench.devices import resolve_device
+    from plls_bench.repr import action_dim, new_model
     from plls_bench.repr.fit import Split, fit, torch_threads
     from plls_bench.repr.train import training_threads
 

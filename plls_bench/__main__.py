@@ -1,7 +1,9 @@
 """``python -m plls_bench +experiment=NAME [overrides]`` (``-m`` for multiruns).
 
 The command line is composed and validated first, so a wrong value exits with one message naming
-the key, before Hydra creates a run directory and before any compute.
+the key, before Hydra creates a run directory and before any compute. That includes asking for a
+device this machine lacks (``device=cuda`` without a GPU): config validation cannot check that,
+since it also runs when recorded configs are read back on other machines.
 """
 from __future__ import annotations
 
@@ -14,10 +16,14 @@ from omegaconf import DictConfig
 
 from plls_bench.composition import CONF_DIR, compose, expand_sweeps, register
 from plls_bench.config import ConfigError, to_config
+from plls_bench.devices import require_device
 
 register()
 
 _NO_VALIDATION_FLAGS = ("help", "hydra_help", "info", "shell_completion")
+# Launchers whose jobs run on this machine; others (slurm) run them on nodes that may have the GPU
+# the submitting machine lacks, so there each job checks its device when it starts (runner.execute).
+_LOCAL_LAUNCHERS = ("basic", "parallel", "joblib", "submitit_local")
 
 
 def validate_command_line(argv: list[str]) -> None:
@@ -28,8 +34,17 @@ def validate_command_line(argv: list[str]) -> None:
     if any(getattr(args, flag, False) for flag in _NO_VALIDATION_FLAGS) or args.config_dir:
         return
     jobs = expand_sweeps(args.overrides) if args.multirun else [args.overrides]
+    here = not args.multirun or _launcher(args.overrides) in _LOCAL_LAUNCHERS
     for overrides in jobs:
-        compose(overrides, config_name=args.config_name or "config")
+        cfg = compose(overrides, config_name=args.config_name or "config")
+        if here:
+            require_device(cfg.device)
+
+
+def _launcher(overrides: list[str]) -> str:
+    """The ``hydra/launcher`` choice of a command line (Hydra's default is ``basic``)."""
+    chosen = [o.split("=", 1)[1] for o in overrides if o.lstrip("+~").startswith("hydra/launcher=")]
+    return chosen[-1] if chosen else "basic"
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")

@@ -3,13 +3,14 @@ from __future__ import annotations
 
 import importlib.metadata
 import os
-import platform
 import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
+
+from plls_bench.devices import cpu_model, device_name, resolve_device
 
 PACKAGES = ("plls-bench", "torch", "numpy", "gymnasium", "stable-baselines3", "mujoco",
             "dm-control", "hydra-core", "omegaconf", "box2d", "cvxpy")
@@ -42,16 +43,24 @@ def package_versions() -> dict[str, str | None]:
 
 
 def device_description() -> str:
+    """The machine's accelerator (or CPU) in words, whatever device the run asked for."""
     try:
         import torch
     except ImportError:
         return "cpu (torch missing)"
     if torch.cuda.is_available():
         return f"cuda: {torch.cuda.get_device_name(0)}"
-    return f"cpu: {platform.processor() or platform.machine()}, {os.cpu_count()} cores"
+    return f"cpu: {cpu_model()}, {os.cpu_count()} cores"
 
 
-def collect_provenance() -> dict[str, Any]:
+def device_used(setting: str) -> dict[str, str]:
+    """The device a ``device`` setting resolves to here (``cpu``, ``cuda:0``) and its hardware."""
+    device = resolve_device(setting)
+    return {"device_resolved": str(device), "device_name": device_name(device)}
+
+
+def collect_provenance(device: str = "auto") -> dict[str, Any]:
+    """This start's record; ``device`` is the run's ``device`` setting."""
     return {
         **git_state(),
         "packages": package_versions(),
@@ -59,6 +68,7 @@ def collect_provenance() -> dict[str, Any]:
         "command": [Path(sys.executable).name, *sys.argv],
         "host": socket.gethostname(),
         "device": device_description(),
+        **device_used(device),
         "mujoco_gl": os.environ.get("MUJOCO_GL"),
         "start_time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Callable
 
 from plls_bench.config import Config
+from plls_bench.devices import require_device
 from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, Run, config_hash
 from plls_bench.seeding import derive_seeds, seed_everything
 
@@ -40,6 +41,7 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
     if run.is_done(cfg_hash):
         log.info("already done with config %s: %s", cfg_hash, run.path)
         return "skipped"
+    require_device(cfg.device)  # a SLURM job's node may lack the GPU asked for: say so, touch nothing
     previous = (run.read_config() or {}).get("config_hash")
     if previous is not None and previous != cfg_hash:
         moved = _supersede_keeping_hydra(run, cfg.runs_dir)

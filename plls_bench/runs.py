@@ -4,7 +4,7 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
 
     .hydra/               Hydra's own record of the composed config and overrides
     config.json           the typed, resolved config and its hash (what the collector reads)
-    provenance.json       git sha + dirty flag, package versions, command, host, device, starts
+    provenance.json       git sha + dirty flag, package versions, command, host, device used, starts
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
     checkpoints/          whatever the runner needs to resume
     status.json           written last and atomically: running -> done | failed (with the error)
@@ -35,6 +35,11 @@ HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
     "algo.ppo.use_sde": False, "algo.ppo.sde_sample_freq": 0,
     "algo.ppo.normalize_obs": False, "algo.ppo.normalize_reward": False,
 }
+# Config keys hashed at a fixed value, whatever the config says. ``device`` changes where a run
+# computes, not what it computes statistically (CPU and GPU kernels differ in rounding only), so it
+# must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
+# value instead of dropping the key keeps the hashes of existing runs, which stay done/resumable.
+HASH_PINNED_KEYS = {"device": "cpu"}
 
 
 # --------------------------------------------------------------------------- atomic files
@@ -125,9 +130,10 @@ def stable_hash(obj: Any, length: int = 16) -> str:
 
 
 def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLUDED_KEYS) -> dict[str, Any]:
-    """What identifies a config: less the ``excluded`` top-level keys and the keys of
-    :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values."""
-    data = {k: v for k, v in config.items() if k not in excluded}
+    """What identifies a config: less the ``excluded`` top-level keys, :data:`HASH_PINNED_KEYS`
+    at their pinned values and the keys of :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values
+    left out."""
+    data = {k: HASH_PINNED_KEYS.get(k, v) for k, v in config.items() if k not in excluded}
     for dotted, neutral in HASH_NEUTRAL_DEFAULTS.items():
         *parents, leaf = dotted.split(".")
         node: Any = data
@@ -202,7 +208,7 @@ class Run:
         from plls_bench.provenance import collect_provenance  # lazy: imports torch & friends
 
         previous = read_json(self.path / "provenance.json") or {}
-        starts = list(previous.get("starts", [])) + [collect_provenance()]
+        starts = list(previous.get("starts", [])) + [collect_provenance(getattr(cfg, "device", "auto"))]
         atomic_write_json(self.path / "provenance.json", {**starts[0], "starts": starts})
 
     def read_config(self) -> dict[str, Any] | None:

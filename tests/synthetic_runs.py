@@ -26,7 +26,8 @@ PRESETS: dict[str, list[str]] = {
     **{name: [f"+experiment={name}"] for name in ("mountaincar_ppo", "mountaincar_plls_ppo", "carracing_ppo",
                                                    "carracing_plls_ppo", "carracing_ppo_vs", "carracing_ppo_va",
                                                    "mountaincar_multistep", "mountaincar_onestep",
-                                                   "mountaincar_generalisation")},
+                                                   "mountaincar_generalisation", "mountaincar_ppo_gsde",
+                                                   "mountaincar_plls_ppo_gsde", "mountaincar_ppo_zoo")},
     "cheetah_dbc": DBC,
     "cheetah_plls_dbc": [*DBC, "repr/action=vae"],
     "mountaincar_va": ["env=mountaincar", "runner=repr", "repr/action=vae"],
@@ -151,7 +152,8 @@ def write_samples(run: Run, rng: np.random.Generator) -> None:
 
 
 # --------------------------------------------------------------------------- a whole suite
-PLLS_FILMSTRIPS = {"mountaincar_plls_ppo": (18, 4, 70), "carracing_plls_ppo": (21, 48, None),
+PLLS_FILMSTRIPS = {"mountaincar_plls_ppo": (18, 4, 70), "mountaincar_plls_ppo_gsde": (18, 4, 66),
+                   "carracing_plls_ppo": (21, 48, None),
                    "cheetah_plls_dbc": (25, 40, None)}  # frames, interval, steps to goal
 
 

@@ -115,13 +115,22 @@ BAD_INPUTS = [
     (["repr.action.latnt_dim=3"], "latnt_dim"),
     (["budget.trials=0"], "budget.trials"),
     (["+study=onestep", "runner=study", "repr/action=vae", "study.s0=[0.9,0.0]"], "study.s0"),
+    # frames too small for the conv stack that sees them (a shape error after the run dir, before)
+    (["+experiment=cheetah_dbc", "env.image_size=7"], "env.image_size"),
+    (["+experiment=carracing_ppo", "env.image_size=7"], "env.image_size"),
+    (["+experiment=carracing_ppo_vs", "env.image_size=7"], "env.image_size"),
+    (["+experiment=cheetah_dbc", "env.frame_stack=0"], "env.frame_stack"),
+    (["+experiment=cheetah_dbc", "env.camera_id=-1"], "env.camera_id"),
 ]
 
 
-@pytest.mark.parametrize(("overrides", "key"), BAD_INPUTS, ids=[k for _, k in BAD_INPUTS])
+@pytest.mark.parametrize(("overrides", "key"), BAD_INPUTS,
+                         ids=[" ".join([*(o[12:] for o in overrides if o.startswith("+experiment=")), key])
+                              for overrides, key in BAD_INPUTS])
 def test_bad_input_is_refused_before_any_run_dir(overrides: list[str], key: str, tmp_path: Path) -> None:
     runs = tmp_path / "runs"
-    done = run_cli("+experiment=mountaincar_data", f"runs_dir={runs}", *overrides)
+    preset = [] if any(o.startswith("+experiment=") for o in overrides) else ["+experiment=mountaincar_data"]
+    done = run_cli(*preset, f"runs_dir={runs}", *overrides)
     assert done.returncode == 2, done.stdout + done.stderr
     message = done.stderr.strip().splitlines()
     assert len(message) == 1 and key in message[0], done.stderr

@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Callable
 
@@ -22,6 +22,7 @@ import numpy as np
 
 from plls_bench.artifacts import npz_bytes
 from plls_bench.config import Config, ConfigError, FilmstripConfig
+from plls_bench.devices import require_device
 from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
 from plls_bench.seeding import derive_seeds
 
@@ -109,9 +110,10 @@ def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
     from plls_bench.train.checkpoint import latest
 
     trained = load_trained(run_dir, device)
+    cfg = replace(trained.cfg, device=device)  # V_s / V_a join the policy here, not on the recorded device
     found = latest(run_dir)
     assert found is not None  # load_trained raised otherwise
-    return trained.cfg, trained.act, found[0].name
+    return cfg, trained.act, found[0].name
 
 
 def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
@@ -136,7 +138,7 @@ def filmstrip_config(env: str, overrides: list[str]) -> FilmstripConfig:
 
 
 def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] | None = None,
-                   device: str = "cpu", max_steps: int = 0) -> dict:
+                   device: str = "auto", max_steps: int = 0) -> dict:
     """Record ``run_dir``'s policy and write the filmstrip files; returns filmstrip.json's content."""
     record_json = read_json(run_dir / "config.json")
     if record_json is None:
@@ -167,7 +169,8 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dir", type=Path, help="a ppo (or dbc) run directory with a checkpoint")
     parser.add_argument("--out", type=Path, help="where frames.npz and filmstrip.json go (RUN_DIR/filmstrip)")
-    parser.add_argument("--device", default="cpu", help="torch device of the policy (cpu | cuda)")
+    parser.add_argument("--device", default="auto", help="torch device of the policy: cpu | cuda | auto "
+                        "(cuda when present); any device, whatever the run trained on")
     parser.add_argument("--max-steps", type=int, default=0, help="cap the episode at this many agent steps")
     parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
                         help="filmstrip settings, e.g. interval=8 episode=2 (conf/filmstrip/<env>.yaml)")
@@ -175,6 +178,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not args.run_dir.is_dir():
             raise ConfigError(f"{args.run_dir}: no such run directory")
+        require_device(args.device, "--device")
         meta = make_filmstrip(args.run_dir, args.out, args.overrides, args.device, args.max_steps)
     except (ConfigError, FileNotFoundError) as err:
         print(f"filmstrip: {err}", file=sys.stderr)

@@ -4,6 +4,11 @@ Values live in ``conf/`` (yaml, every key commented with its source); this modul
 defaults that are *not* paper settings, and validation. ``validate`` runs when Hydra's
 ``DictConfig`` is converted with ``OmegaConf.to_object`` (see :func:`to_config`), which the entry
 point does before it creates a run directory or starts any compute. Errors name the offending key.
+
+Validation checks what a config *is*, on any machine: recorded configs are validated again when
+they are read back (reports, filmstrips). Whether this machine *has* the device a config asks for
+is checked where a command is about to compute (:func:`plls_bench.devices.require_device`, from the
+CLI and the runners), so a run recorded with ``device=cuda`` stays readable on a CPU-only machine.
 """
 from __future__ import annotations
 
@@ -19,7 +24,8 @@ from plls_bench.config.checks import (ConfigError, Validated, check, check_choic
 from plls_bench.config.learning import (ALGO_NAMES, BUDGET_NAMES, FEATURE_EXTRACTORS, PPO_ACTIVATIONS,
                                         TRANSITION_MODELS, AlgoConfig, BudgetConfig, DBCConfig, PPOConfig)
 from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_ACTIVATIONS, ActionReprConfig,
-                                     EnvConfig, ReprConfig, StateReprConfig)
+                                     EnvConfig, ReprConfig, StateReprConfig, conv_sizes)
+from plls_bench.devices import DEVICES
 
 __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "ENV_NAMES", "FEATURE_EXTRACTORS", "LATENT_CHOICES",
            "PPO_ACTIVATIONS", "REPR_KINDS", "RUNNERS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
@@ -41,7 +47,7 @@ class Config(Validated):
     seed: int = 0
     data_seed: int = 0
     runs_dir: str = "results/runs"
-    device: str = "cpu"
+    device: str = "auto"
     torch_threads: int = 0
     progress: bool = True
     env: EnvConfig = field(default_factory=EnvConfig)
@@ -55,7 +61,7 @@ class Config(Validated):
         check_choice(self.runner, RUNNERS, "runner")
         check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
         check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
-        check_choice(self.device, ("cpu", "cuda", "auto"), "device")
+        check_choice(self.device, DEVICES, "device")
         check_nonnegative(self.torch_threads, "torch_threads")
         check(bool(self.experiment) and "/" not in self.experiment, "experiment",
               f"must be a non-empty name without '/', got {self.experiment!r}")
@@ -70,6 +76,8 @@ class Config(Validated):
                   "runner=repr needs repr/state=vae or repr/action=vae (both are none)")
         if self.repr.state.kind == "vae":
             self._validate_state_vae()
+        if self.env.pixels:
+            self._check_pixel_encoders()
         if self.runner == "study":
             check(self.study is not None, "study", "runner=study needs a study section (+study=NAME)")
             check(self.env.name == "mountaincar", "env", f"the studies are MountainCar's, got env {self.env.name}")
@@ -82,11 +90,30 @@ class Config(Validated):
               f"vae needs single-frame pixel data; env {self.env.name} has data_pixels="
               f"{self.env.data_pixels}, frame_stack={self.env.frame_stack}")
         sizes = state.feature_sizes(size)
-        check(sizes[-1] >= 1, "repr.state.kernel_sizes",
-              f"shrink a {size}x{size} image to nothing: spatial sizes {sizes}")
+        check(min(sizes) >= 1, "repr.state.kernel_sizes",
+              f"shrink a {size}x{size} image (env.image_size) to nothing: spatial sizes {sizes}")
         check(state.decoded_size(size) == size, "repr.state.deconv_kernel_sizes",
               f"{state.deconv_kernel_sizes} decode the {sizes[-1]}x{sizes[-1]} feature map to "
               f"{state.decoded_size(size)}x{state.decoded_size(size)}, not {size}x{size}")
+
+    def _check_pixel_encoders(self) -> None:
+        """The conv stack that sees the frames must leave a feature map of at least 1x1.
+
+        Caught here, not when the network is built after the run dir exists. V_s is checked by
+        :meth:`_validate_state_vae`; with V_s the policy sees vectors and has no conv stack.
+        """
+        size, dbc, ppo = self.env.image_size, self.algo.dbc, self.algo.ppo
+        if self.runner == "dbc" and dbc is not None:
+            sizes = conv_sizes(size, [3] * dbc.num_layers, [2] + [1] * (dbc.num_layers - 1))
+            check(min(sizes) >= 1, "env.image_size",
+                  f"{size}x{size} frames are too small for DBC's encoder (3x3 convs, stride 2 then 1, "
+                  f"algo.dbc.num_layers={dbc.num_layers}): spatial sizes {sizes}")
+        if self.runner == "ppo" and ppo is not None and ppo.features_extractor == "paper_cnn":
+            kernels = list(ppo.cnn_kernel_sizes)
+            sizes = conv_sizes(size, kernels, [ppo.cnn_stride] * len(kernels))
+            check(min(sizes) >= 1, "env.image_size",
+                  f"{size}x{size} frames are too small for the policy's convs (algo.ppo.cnn_kernel_sizes="
+                  f"{kernels}, algo.ppo.cnn_stride={ppo.cnn_stride}): spatial sizes {sizes}")
 
     def _check_ppo_network(self, ppo: PPOConfig) -> None:
         """The policy's trunk must fit what it sees: images unless V_s encodes them."""

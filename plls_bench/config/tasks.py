@@ -37,6 +37,7 @@ class EnvConfig(Validated):
         check_positive(self.max_episode_steps, "env.max_episode_steps")
         check_positive(self.frame_stack, "env.frame_stack")
         check_positive(self.action_repeat, "env.action_repeat")
+        check_nonnegative(self.camera_id, "env.camera_id")
         check_positive(self.data_num_envs, "env.data_num_envs")
         check_fraction(self.data_train_fraction, "env.data_train_fraction")
         check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
@@ -47,6 +48,14 @@ class EnvConfig(Validated):
 
 
 # --------------------------------------------------------------------------- representations
+def conv_sizes(size: int, kernels: list[int], strides: list[int]) -> list[int]:
+    """Spatial sizes through unpadded convolutions: ``[size, after conv 1, ...]``."""
+    sizes = [size]
+    for kernel, stride in zip(kernels, strides):
+        sizes.append((sizes[-1] - kernel) // stride + 1)
+    return sizes
+
+
 @dataclass
 class StateReprConfig(Validated):
     """V_s: convolutional VAE over image observations (World Models style).
@@ -88,10 +97,7 @@ class StateReprConfig(Validated):
 
     def feature_sizes(self, image_size: int) -> list[int]:
         """Spatial sizes through the encoder: ``[image_size, ..., last feature map]``."""
-        sizes = [image_size]
-        for kernel in self.kernel_sizes:
-            sizes.append((sizes[-1] - kernel) // 2 + 1)
-        return sizes
+        return conv_sizes(image_size, list(self.kernel_sizes), [2] * len(self.kernel_sizes))
 
     def decoded_size(self, image_size: int) -> int:
         """Spatial size the transposed convolutions produce from the last feature map."""

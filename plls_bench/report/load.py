@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 
 from plls_bench.config.learning import BUDGET_NAMES
-from plls_bench.runs import HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, STATUS_DONE, hashed_config, read_json, scan_jsonl, stable_hash
+from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
+                             read_json, scan_jsonl, stable_hash)
 
 DEFAULT_VARIANT = "default"
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
@@ -86,7 +87,7 @@ class Runs:
 
     def __init__(self, runs_dir: str | Path, records_dir: str | Path | None = None) -> None:
         self.root = Path(runs_dir)
-        self.records = None if records_dir is None else Path(records_dir)
+        self.records_root = None if records_dir is None else Path(records_dir)
         self.gaps: list[Gap] = []
         self._experiments: dict[tuple[str, str], Experiment] = {}
 
@@ -107,8 +108,8 @@ class Runs:
     def _scan(self, name: str, variant: str) -> Experiment:
         exp = Experiment(name, variant)
         roots = [(self.root / name / variant, "run")]
-        if self.records is not None:
-            roots.append((self.records / name / variant, "record"))
+        if self.records_root is not None:
+            roots.append((self.records_root / name / variant, "record"))
         if not any(root.is_dir() for root, _ in roots):
             self.gap(exp, None, f"no runs (expected {roots[0][0]})")
             return exp
@@ -124,7 +125,7 @@ class Runs:
                 if trial is not None and not _replaced(trial, candidates):
                     candidates.append(trial)
         exp.trials = self._consistent(exp, candidates)
-        self._missing_seeds(exp, {t.seed for t in exp.trials} if self.records is not None else seen)
+        self._missing_seeds(exp, {t.seed for t in exp.trials} if self.records_root is not None else seen)
         return exp
 
     def _trial(self, exp: Experiment, seed: int, path: Path, source: str = "run") -> Trial | None:
@@ -238,8 +239,12 @@ def _seed_order(path: Path) -> tuple[int, str]:
     return (int(match.group(1)), "") if match else (1 << 62, path.name)
 
 
+# Trials of one experiment may differ in these and still be pooled: the device a seed ran on too.
+_NOT_IDENTITY = (*HASH_EXCLUDED_KEYS, *HASH_PINNED_KEYS, "seed")
+
+
 def _identity(config: dict[str, Any]) -> str:
-    return stable_hash(hashed_config(config, (*HASH_EXCLUDED_KEYS, "seed")))
+    return stable_hash(hashed_config(config, _NOT_IDENTITY))
 
 
 def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
@@ -253,8 +258,9 @@ def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
 
 def _diff(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     fa, fb = _flatten(a), _flatten(b)
-    keys = [k for k in sorted(set(fa) | set(fb)) if fa.get(k, HASH_NEUTRAL_DEFAULTS.get(k)) != fb.get(k, HASH_NEUTRAL_DEFAULTS.get(k))
-            and k.split(".")[0] not in (*HASH_EXCLUDED_KEYS, "seed")]
+    keys = [k for k in sorted(set(fa) | set(fb))
+            if fa.get(k, HASH_NEUTRAL_DEFAULTS.get(k)) != fb.get(k, HASH_NEUTRAL_DEFAULTS.get(k))
+            and k.split(".")[0] not in _NOT_IDENTITY]
     return [f"{k}: {fa.get(k)!r} vs {fb.get(k)!r}" for k in keys]
 
 

@@ -7,22 +7,15 @@ trains it as a content-addressed artifact shared by every trial (see :mod:`.stor
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 from plls_bench.config import Config
+from plls_bench.devices import resolve_device
 from plls_bench.repr.models import ActionVAE, StateVAE
 from plls_bench.seeding import derive_seeds
 
-__all__ = ["ActionVAE", "StateVAE", "get_action_vae", "get_state_vae", "resolve_device"]
+__all__ = ["ActionVAE", "StateVAE", "get_action_vae", "get_state_vae"]
 
 _STREAMS = {"state": 0, "action": 1}  # independent training streams off the data seed
-
-
-def resolve_device(name: str) -> torch.device:
-    """``cpu`` / ``cuda`` / ``auto`` (cuda when available) as a torch device."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
 
 
 def training_seed(cfg: Config, which: str) -> int:

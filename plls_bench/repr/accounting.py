@@ -61,6 +61,9 @@ def _layers(module: nn.Module, example: Tensor) -> list[dict[str, Any]]:
                          "params": sum(p.numel() for p in own),
                          "trainable": sum(p.numel() for p in own if p.requires_grad)})
         hooks.append(sub.register_forward_hook(hook))
+    param = next(module.parameters(), None)
+    if param is not None:  # callers build examples on the CPU; the module may sit on a GPU
+        example = example.to(param.device)
     was_training = module.training
     module.eval()  # no dropout / running-statistics updates from a summary pass
     try:

@@ -19,7 +19,8 @@ import torch
 from plls_bench.artifacts import artifact_path, save_npz
 from plls_bench.config import Config
 from plls_bench.data import RandomPolicyData, get_dataset
-from plls_bench.repr import get_action_vae, get_state_vae, new_model, resolve_device, training_seed
+from plls_bench.devices import resolve_device
+from plls_bench.repr import get_action_vae, get_state_vae, new_model, training_seed
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.fit import Split, batches, evaluate, fit, mean_reconstruction_mse, torch_threads
 from plls_bench.repr.models import VAE

@@ -15,6 +15,7 @@ from torch import nn
 
 from plls_bench.composition import config_from_dict
 from plls_bench.config import Config
+from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
 from plls_bench.runs import read_json
@@ -40,7 +41,7 @@ def new_model(cfg: Config, venv: VecEnv) -> PPO:
                gae_lambda=ppo.gae_lambda, clip_range=ppo.clip_range, ent_coef=ppo.ent_coef,
                vf_coef=ppo.vf_coef, max_grad_norm=ppo.max_grad_norm, policy_kwargs=policy_kwargs(ppo),
                use_sde=ppo.use_sde, sde_sample_freq=ppo.sde_sample_freq if ppo.sde_sample_freq else -1,
-               device=cfg.device, verbose=0)
+               device=resolve_device(cfg.device), verbose=0)
 
 
 def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str, torch.Tensor]]:
@@ -67,19 +68,19 @@ class Trained:
         return self.model.predict(self.normalize_obs(obs), deterministic=deterministic)[0]
 
 
-def load_trained(run_dir: str | Path, device: str = "cpu") -> Trained:
-    """The run's last checkpointed policy (the final one once the run is ``done``). It acts on
-    ``build_vec_env(cfg, ...)`` observations (latent z with V_s) through :meth:`Trained.act`, which
-    applies the saved VecNormalize statistics frozen; its actions are what that env's ``step``
-    takes (latent e with V_a): roll it out through ``build_vec_env`` or ``wrap_latent`` so the
-    frozen V_s / V_a are applied as in training."""
+def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
+    """The run's last checkpointed policy (the final one once the run is ``done``), on ``device``
+    (``auto``: the GPU when present). It acts on ``build_vec_env(cfg, ...)`` observations (latent
+    z with V_s) through :meth:`Trained.act`, which applies the saved VecNormalize statistics
+    frozen; its actions are what that env's ``step`` takes (latent e with V_a): roll it out through
+    ``build_vec_env`` or ``wrap_latent`` so the frozen V_s / V_a are applied as in training."""
     record = read_json(Path(run_dir) / "config.json")
     if record is None:
         raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
     found = latest(Path(run_dir))
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
-    return Trained(config_from_dict(record["config"]), PPO.load(found[0], device=device),
+    return Trained(config_from_dict(record["config"]), PPO.load(found[0], device=resolve_device(device)),
                    frozen_obs_map(normalization(Path(run_dir))))
 
 

@@ -20,10 +20,10 @@ from tqdm.auto import tqdm
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.config import Config
+from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.evaluate import run_episodes
 from plls_bench.latent import wrap_latent
-from plls_bench.repr import resolve_device
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 from plls_bench.train.dbc_accounting import write_accounting

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import io
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.artifacts import load_npz, save_npz
 from plls_bench.composition import config_from_dict
 from plls_bench.config import Config
+from plls_bench.devices import resolve_device
 from plls_bench.runs import Run, read_json
 
 CHECKPOINT = "checkpoints/dbc.pt"
@@ -84,7 +85,7 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
     progress = Progress(**state["progress"])
     agent.load_state_dict(state["agent"])
     rng.bit_generator.state = state["rng"]
-    torch.set_rng_state(state["torch_rng"])
+    torch.set_rng_state(state["torch_rng"].cpu())  # map_location moved it to the agent's device
     for start, end, chunk in _chunks(run):
         if end > progress.replay_written:  # written by a checkpoint that never completed
             chunk.unlink()
@@ -96,12 +97,14 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
     return progress
 
 
-def load_trained_agent(run_dir: Path, device: str = "cpu") -> tuple[Config, DBCAgent, Box]:
+def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBCAgent, Box]:
     """A DBC run's typed config, its last checkpointed agent (no replay, no optimiser use) and the
-    box its actions map to (V_a's latent box with ``repr/action=vae``), for filmstrips."""
+    box its actions map to (V_a's latent box with ``repr/action=vae``), for filmstrips.
+
+    Everything lands on ``device`` (``auto``: a GPU when present), whatever device the run trained
+    on; the returned config says so (``cfg.device``), so V_s / V_a built from it land there too."""
     from plls_bench.envs import make_vec_env
     from plls_bench.latent import wrap_latent
-    from plls_bench.repr import resolve_device
 
     record = read_json(run_dir / "config.json")
     if record is None:
@@ -109,14 +112,15 @@ def load_trained_agent(run_dir: Path, device: str = "cpu") -> tuple[Config, DBCA
     path = run_dir / CHECKPOINT
     if not path.exists():
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
-    cfg = config_from_dict(record["config"])
+    target = resolve_device(device)  # refuses an absent GPU before any env is built
+    cfg = replace(config_from_dict(record["config"]), device=device)  # the recorded one may be absent here
     assert cfg.algo.dbc is not None
     venv = wrap_latent(make_vec_env(cfg.env, 1, 0), cfg)  # the spaces the agent saw in training
     try:
         obs_shape, space = venv.observation_space.shape, venv.action_space
     finally:
         venv.close()
-    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, resolve_device(device))
+    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target)
     state = torch.load(path, map_location=agent.device, weights_only=True)
     agent.load_state_dict(state["agent"])
     return cfg, agent, space

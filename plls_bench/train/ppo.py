@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from tqdm.auto import tqdm
 
 from plls_bench.config import Config
+from plls_bench.devices import resolve_device
 from plls_bench.evaluate import run_episodes
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.runs import Run
@@ -145,7 +146,7 @@ def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tu
     saved_stats = checkpoint.normalization(run.path)
     if saved_stats is not None:
         normalize.restore(venv, saved_stats)
-    model = PPO.load(zip_path, env=venv, device=cfg.device)
+    model = PPO.load(zip_path, env=venv, device=resolve_device(cfg.device))
     checkpoint.set_rng_state(rng)
     return model, progress, False
 
