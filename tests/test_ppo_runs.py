@@ -15,8 +15,8 @@ from plls_bench.train.agent import build_vec_env, load_trained
 from plls_bench.train.ppo import Plan
 from tests.conftest import compose_preset, run_cli, start_cli
 
-PPO_PRESETS = ["mountaincar_ppo", "mountaincar_plls_ppo", "carracing_ppo", "carracing_plls_ppo",
-               "carracing_ppo_vs", "carracing_ppo_va"]
+PPO_PRESETS = ["mountaincar_ppo", "mountaincar_plls_ppo", "mountaincar_ppo_gsde", "mountaincar_plls_ppo_gsde",
+               "mountaincar_ppo_zoo", "carracing_ppo", "carracing_plls_ppo", "carracing_ppo_vs", "carracing_ppo_va"]
 EVAL_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "episode_returns", "return_mean",
              "episode_lengths", "episode_returns_stochastic", "return_mean_stochastic"}
 TRAIN_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "loss/policy", "loss/value",
