@@ -108,6 +108,18 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
     return failed
 
 
+def export_run_records(runs_dir: str) -> None:
+    """Copy the small files of every finished non-smoke run into the committed records folder
+    beside the runs dir, so the evidence survives a fresh clone (commit them with git)."""
+    from plls_bench.records import export_records, records_dir_for
+
+    done = export_records(runs_dir)
+    print(f"[reproduce] records: {len(done.written)} written, {done.unchanged} unchanged under "
+          f"{records_dir_for(runs_dir)} (commit them to keep this evidence)", flush=True)
+    for line in done.skipped:
+        print(f"[reproduce] records: skipped {line}", flush=True)
+
+
 def collect_results(runs_dir: str, out_dir: str) -> int:
     """Regenerate every table and figure from the runs (gaps from failed presets are reported)."""
     from plls_bench.report.__main__ import main as report_main  # lazy: plotting stack
@@ -160,6 +172,8 @@ def main(argv: list[str] | None = None) -> int:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "
               "from its checkpoint; run the same command again to finish the rest", file=sys.stderr)
         return EXIT_INTERRUPTED
+    if args.profile != "smoke":
+        export_run_records(args.runs)
     report = 0 if args.no_report else collect_results(args.runs, args.out)
     if failed:
         print(f"[reproduce] failed presets: {', '.join(failed)} (see their status.json and run.log)", file=sys.stderr)

@@ -1,0 +1,84 @@
+"""Committed run records: what is exported, and that the collector regenerates the same tables
+from records alone (a fresh clone) and keeps them when a smoke run appears beside them."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plls_bench.records import export_records, main as records_main, record_files, records_dir_for
+from plls_bench.report.collect import render_all
+from plls_bench.report.load import Runs
+from tests.synthetic_runs import build_all, fill, finish, make_run
+
+TABLES = ("claims", "stats", "table3")
+
+
+def _tables(out: Path) -> dict[str, str]:
+    return {name: (out / "tables" / f"{name}.csv").read_text() for name in TABLES}
+
+
+@pytest.fixture(scope="module")
+def quick_runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("records") / "results"
+    build_all(root / "runs", budget="quick")
+    return root
+
+
+def test_records_hold_the_collector_files_not_checkpoints(quick_runs: Path, tmp_path: Path) -> None:
+    run_dir = next((quick_runs / "runs" / "mountaincar_ppo" / "default").iterdir())
+    (run_dir / "checkpoints" / "ppo-0000001.zip").write_bytes(b"weights")
+    (run_dir / "sb3").mkdir(exist_ok=True)
+    (run_dir / "sb3" / "progress.csv").write_text("x\n")
+    names = {str(p) for p in record_files(run_dir)}
+    assert {"config.json", "status.json", "metrics/eval.jsonl", "metrics/params.json"} <= names
+    assert not any(n.startswith(("checkpoints", "sb3", ".hydra")) for n in names)
+
+    out = tmp_path / "records"
+    first = export_records(quick_runs / "runs", out)
+    assert first.written and not first.skipped
+    assert not list(out.rglob("checkpoints")) and not list(out.rglob("*.zip"))
+    again = export_records(quick_runs / "runs", out)
+    assert again.written == [] and again.unchanged == len(first.written), "an unchanged record is not rewritten"
+
+
+def test_smoke_and_unfinished_runs_are_not_recorded(tmp_path: Path) -> None:
+    runs = tmp_path / "results" / "runs"
+    smoke, cfg = make_run(runs, "mountaincar_ppo", 0, budget="smoke")
+    finish(smoke, cfg)
+    running, cfg = make_run(runs, "mountaincar_plls_ppo", 0, budget="quick")
+    done = export_records(runs)
+    assert done.written == [] and any("mountaincar_plls_ppo" in s and "running" in s for s in done.skipped)
+    assert not (records_dir_for(runs) / "mountaincar_ppo").exists()
+    assert records_main(["--runs", str(runs)]) == 0
+
+
+@pytest.mark.slow
+def test_fresh_clone_regenerates_the_same_tables_from_records(quick_runs: Path, tmp_path: Path) -> None:
+    """Tables from the run dirs == tables from the records alone == tables from the records with
+    a smoke run of the same preset and seed beside them (it must not erase the evidence)."""
+    from_runs = tmp_path / "from_runs"
+    render_all(quick_runs / "runs", from_runs, only=list(TABLES))
+    clone = tmp_path / "clone" / "results"
+    export_records(quick_runs / "runs", clone / "records")
+    from_records = tmp_path / "from_records"
+    render_all(clone / "runs", from_records, only=list(TABLES), records_dir=clone / "records")
+    assert _tables(from_records) == _tables(from_runs)
+
+    smoke, cfg = make_run(clone / "runs", "mountaincar_ppo", 0, budget="smoke")
+    fill(smoke, cfg, np.random.default_rng(1))
+    finish(smoke, cfg)
+    with_smoke = tmp_path / "with_smoke"
+    statuses = render_all(clone / "runs", with_smoke, only=list(TABLES), records_dir=clone / "records")
+    assert _tables(with_smoke) == _tables(from_runs)
+    assert any("config differs" in g for g in statuses["claims"].gaps), "the smoke run is reported, not used"
+
+
+def test_a_local_run_replaces_its_record(quick_runs: Path, tmp_path: Path) -> None:
+    clone = tmp_path / "results"
+    export_records(quick_runs / "runs", clone / "records")
+    shutil.copytree(quick_runs / "runs" / "mountaincar_ppo", clone / "runs" / "mountaincar_ppo")
+    trials = Runs(clone / "runs", clone / "records").experiment("mountaincar_ppo").trials
+    assert [t.source for t in trials] == ["run", "run", "run"] and [t.seed for t in trials] == [0, 1, 2]
