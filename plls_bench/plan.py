@@ -9,6 +9,7 @@ representations) are costed once, by the first preset that needs them.
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 import json
 import math
 from dataclasses import dataclass, field
@@ -51,6 +52,18 @@ def list_presets() -> list[str]:
     return sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 
 
+def select_presets(presets: list[str], patterns: list[str]) -> list[str]:
+    """The presets named by ``patterns``: names or shell-style globs (``mountaincar_*``), in the
+    order given; a pattern that matches nothing is an error naming it."""
+    chosen: list[str] = []
+    for pattern in patterns:
+        matched = fnmatch.filter(presets, pattern)
+        if not matched:
+            raise ConfigError(f"--only: unknown preset(s) {pattern}; known: {', '.join(presets)}")
+        chosen += [name for name in matched if name not in chosen]
+    return chosen
+
+
 def load_rates(path: Path = THROUGHPUT_FILE) -> dict[str, float]:
     """Measured throughputs by key (``collect/<env>``, ``repr_<which>/<env>``, ``train/<preset>``,
     ``eval/<preset>``, ``study/<preset>``); empty when never measured."""
@@ -69,11 +82,9 @@ def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
                  rates: dict[str, float] | None = None) -> list[PresetPlan]:
     """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials."""
     presets = list_presets()
-    unknown = sorted(set(only or []) - set(presets))
-    if unknown:
-        raise ConfigError(f"--only: unknown preset(s) {', '.join(unknown)}; known: {', '.join(presets)}")
+    chosen = select_presets(presets, only) if only else presets
     rates = load_rates() if rates is None else rates
-    plans = [_plan_preset(name, profile, runs_dir) for name in only or presets]
+    plans = [_plan_preset(name, profile, runs_dir) for name in chosen]
     plans.sort(key=lambda p: (RUNNER_ORDER.index(p.runner), p.experiment))
     costed: set[str] = set()
     for plan in plans:

@@ -138,7 +138,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel trials with --launcher joblib")
     parser.add_argument("--hydra", action="append", default=[], metavar="KEY=VALUE",
                         help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
-    parser.add_argument("--only", nargs="+", metavar="PRESET", help="run only these presets")
+    parser.add_argument("--only", nargs="+", metavar="PRESET",
+                        help="run only these presets (names or globs, e.g. 'mountaincar_*')")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
     parser.add_argument("--out", default="results", help="where the results collector writes tables and figures")
     parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
