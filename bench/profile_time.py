@@ -1,7 +1,7 @@
 """Wall time of a whole profile: ``reproduce --profile NAME`` from empty run and result dirs.
 
     nice -n 10 .venv/bin/python bench/profile_time.py                    # smoke (a few minutes)
-    nice -n 10 .venv/bin/python bench/profile_time.py --profile quick --only mountaincar_ppo
+    nice -n 10 .venv/bin/python bench/profile_time.py --profile quick --only 'mountaincar_*'   # ~1.5-2 h
 
 Runs the main job exactly as ``./reproduce.sh`` does (every preset's pending trials as Hydra
 multiruns, the filmstrips, the results collector) into a temporary directory, prints its output,
@@ -57,8 +57,8 @@ def main(argv: list[str] | None = None) -> int:
         "and the results collector, from empty run and result dirs (the `.venv` already made). "
         "Per preset (process start, compute, evaluation):", "",
         "| preset | outcome | seconds |", "|---|---|---|", *rows])
-    if not args.no_write:
-        write_section(SECTION, text)
+    if not args.no_write:  # one section per profile and selection, so a quick run keeps the smoke row
+        write_section(SECTION if args.profile == "smoke" and not args.only else f"{SECTION}_{args.profile}", text)
     return status
 
 
