@@ -82,3 +82,14 @@ def test_a_local_run_replaces_its_record(quick_runs: Path, tmp_path: Path) -> No
     shutil.copytree(quick_runs / "runs" / "mountaincar_ppo", clone / "runs" / "mountaincar_ppo")
     trials = Runs(clone / "runs", clone / "records").experiment("mountaincar_ppo").trials
     assert [t.source for t in trials] == ["run", "run", "run"] and [t.seed for t in trials] == [0, 1, 2]
+
+
+COMMITTED = Path(__file__).resolve().parent.parent / "results"
+
+
+def test_committed_tables_regenerate_from_the_committed_records(tmp_path: Path) -> None:
+    """What a fresh clone gets: the collector over results/records alone writes the committed tables."""
+    render_all(tmp_path / "runs", tmp_path / "out", only=list(TABLES), records_dir=COMMITTED / "records")
+    for name in TABLES:
+        assert (tmp_path / "out" / "tables" / f"{name}.csv").read_text() == \
+            (COMMITTED / "tables" / f"{name}.csv").read_text(), f"results/tables/{name}.csv differs"

@@ -25,7 +25,11 @@ def _runs_summary(runs_dir: Path, records_dir: Path | None = None) -> list[str]:
     budgets: Counter[str] = Counter()
     commits: Counter[str] = Counter()
     roots = [runs_dir] + ([records_dir] if records_dir is not None else [])
-    for path in (p for root in roots for p in iter_run_dirs(root)):
+    seen: set[Path] = set()  # a run and its record are one run
+    for root, path in ((root, p) for root in roots for p in iter_run_dirs(root)):
+        if path.relative_to(root) in seen:
+            continue
+        seen.add(path.relative_to(root))
         config = (read_json(path / "config.json") or {}).get("config", {})
         budgets[(config.get("budget") or {}).get("name", "unknown")] += 1
         provenance = read_json(path / "provenance.json") or {}
