@@ -13,6 +13,7 @@ Nothing outside this module writes into a run directory except through :class:`R
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import os
@@ -133,25 +134,15 @@ def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLU
     """What identifies a config: less the ``excluded`` top-level keys, :data:`HASH_PINNED_KEYS`
     at their pinned values and the keys of :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values
     left out."""
-    data = {k: HASH_PINNED_KEYS.get(k, v) for k, v in config.items() if k not in excluded}
+    data = copy.deepcopy({k: HASH_PINNED_KEYS.get(k, v) for k, v in config.items() if k not in excluded})
     for dotted, neutral in HASH_NEUTRAL_DEFAULTS.items():
         *parents, leaf = dotted.split(".")
         node: Any = data
         for part in parents:
             node = node.get(part) if isinstance(node, dict) else None
         if isinstance(node, dict) and leaf in node and node[leaf] == neutral:
-            node = _copy_path(data, parents)
             del node[leaf]
     return data
-
-
-def _copy_path(data: dict[str, Any], parents: list[str]) -> dict[str, Any]:
-    """Shallow-copy the dicts along ``parents`` (so the caller's config is never changed); the last."""
-    node = data
-    for part in parents:
-        node[part] = dict(node[part])
-        node = node[part]
-    return node
 
 
 def config_hash(cfg: Any) -> str:

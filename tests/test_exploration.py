@@ -2,7 +2,6 @@
 gSDE, VecNormalize saved with every checkpoint, restored on resume and frozen at evaluation."""
 from __future__ import annotations
 
-import dataclasses
 import json
 import signal
 import time
@@ -127,7 +126,7 @@ def test_evaluation_sees_frozen_statistics_and_raw_rewards(tmp_path: Path) -> No
     for _ in range(20):
         train.step(np.ones((2, 1), dtype=np.float32))
     normalize.sync(train, test)
-    before = dataclasses.replace(test.obs_rms) if dataclasses.is_dataclass(test.obs_rms) else test.obs_rms.copy()
+    before = test.obs_rms.copy()
     test.reset()
     obs, rewards, _, _ = test.step(np.ones((2, 1), dtype=np.float32))
     assert test.obs_rms.count == before.count and np.array_equal(test.obs_rms.mean, train.obs_rms.mean)

@@ -19,18 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from plls_bench.composition import compose
-from plls_bench.latent import LatentAction
 from plls_bench.runs import atomic_write_bytes, atomic_write_json
 from plls_bench.seeding import derive_seeds
 
 METHODS = {"PPO": "mountaincar_ppo", "PL-LS + PPO": "mountaincar_plls_ppo"}
 EXPLORATION = ("gaussian", "gsde")
-
-
-def _latent_action(venv: object) -> LatentAction | None:
-    while venv is not None and not isinstance(venv, LatentAction):
-        venv = getattr(venv, "venv", None)
-    return venv
 
 
 def env_actions(experiment: str, exploration: str, budget: str, seed: int, steps: int) -> np.ndarray:
@@ -45,14 +38,14 @@ def env_actions(experiment: str, exploration: str, budget: str, seed: int, steps
     venv = wrap_training(build_vec_env(cfg, ppo.n_envs, derive_seeds(seed, cfg.data_seed).train), ppo)
     model = new_model(cfg, venv)
     model.set_random_seed(derive_seeds(seed, cfg.data_seed).train)
-    decoder = _latent_action(venv)
+    decoded = cfg.repr.action.kind == "vae"  # LatentAction keeps what it sent (reached through the wrappers)
     obs, out = venv.reset(), []
     if ppo.use_sde:
         model.policy.reset_noise(venv.num_envs)  # once per rollout, as SB3 PPO does
     for _ in range(steps):
         action, _ = model.predict(obs, deterministic=False)
         obs, _, _, _ = venv.step(action)
-        sent = decoder.last_env_actions if decoder is not None else np.clip(action, -1.0, 1.0)
+        sent = venv.last_env_actions if decoded else np.clip(action, -1.0, 1.0)
         out.append(np.asarray(sent, dtype=np.float64).reshape(venv.num_envs))
     venv.close()
     return np.stack(out)
