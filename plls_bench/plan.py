@@ -19,10 +19,10 @@ from typing import Any
 from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
+from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import Run, config_hash, run_dir_path, stable_hash, variant_name
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
-RUNNER_ORDER = ("collect", "repr", "study", "ppo", "dbc")  # artifacts before their consumers
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
     chosen = select_presets(presets, only) if only else presets
     rates = load_rates() if rates is None else rates
     plans = [_plan_preset(name, profile, runs_dir) for name in chosen]
-    plans.sort(key=lambda p: (RUNNER_ORDER.index(p.runner), p.experiment))
+    plans.sort(key=lambda p: (runner_spec(p.runner).order, p.experiment))  # artifacts before their consumers
     costed: set[str] = set()
     for plan in plans:
         plan.seconds, plan.missing_rates = _estimate(plan, rates, costed)
@@ -100,7 +100,7 @@ def _plan_preset(experiment: str, profile: str, runs_dir: str) -> PresetPlan:
         cfg = dataclasses.replace(first, seed=seed)
         path = run_dir_path(runs_dir, experiment, variant_name(cfg.variant), seed)
         trials.append(Trial(seed, path, Run(path).is_done(config_hash(cfg)), cfg))
-    rl = first.runner in ("ppo", "dbc")
+    rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
                       first.budget.train_env_steps if rl else 0)
 
@@ -122,8 +122,8 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     """(rate key, amount) pairs: env steps, training samples, or runs (for fixed-cost studies)."""
     from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
 
-    env, budget, work = cfg.env.name, cfg.budget, []
-    needs_data = cfg.runner in ("collect", "repr", "study") or "vae" in (cfg.repr.state.kind, cfg.repr.action.kind)
+    env, budget, work, spec = cfg.env.name, cfg.budget, [], runner_spec(cfg.runner)
+    needs_data = spec.uses_dataset or "vae" in (cfg.repr.state.kind, cfg.repr.action.kind)
     data_steps = budget.data_episodes * budget.data_steps_per_episode
     if needs_data and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
         work.append((f"collect/{env}", data_steps))
@@ -132,11 +132,11 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
         if getattr(cfg.repr, which).kind == "vae" and _first(costed, cfg.runs_dir, kind, _repr_identity(cfg, which)):
             samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
             work.append((f"{kind}/{env}", samples))
-    if cfg.runner in ("ppo", "dbc"):
+    if spec.trains_policy:
         work.append((f"train/{cfg.experiment}", budget.train_env_steps))
         work.append((f"eval/{cfg.experiment}", _eval_env_steps(cfg)))
-    if cfg.runner == "study":
-        work.append((f"study/{cfg.experiment}", 1))
+    if spec.costs_per_run:
+        work.append((f"{spec.name}/{cfg.experiment}", 1))
     return work
 
 

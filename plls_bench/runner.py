@@ -1,36 +1,21 @@
 """Run one composed config in its run directory: skip if done, resume or start, record status.
 
-Runners are looked up by ``cfg.runner`` in :data:`RUNNERS` ("module:function", imported lazily
-so that choosing one task never imports another's simulator).
+Runners are looked up by ``cfg.runner`` in the registry (:mod:`plls_bench.runner_specs`), whose
+loaders import a runner's module only when it runs, so that choosing one task never imports
+another's simulator.
 """
 from __future__ import annotations
 
-import importlib
 import logging
 from pathlib import Path
-from typing import Callable
 
 from plls_bench.config import Config
 from plls_bench.devices import require_device
+from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, Run, config_hash
 from plls_bench.seeding import derive_seeds, seed_everything
 
 log = logging.getLogger(__name__)
-
-RUNNERS: dict[str, str] = {
-    "collect": "plls_bench.data:run",
-    "ppo": "plls_bench.train.ppo:run",
-    "repr": "plls_bench.repr.train:run",
-    "dbc": "plls_bench.train.dbc:run",
-    "study": "plls_bench.analysis.studies:run",
-}
-
-
-def resolve_runner(name: str) -> Callable[[Config, Run], None]:
-    if name not in RUNNERS:
-        raise KeyError(f"runner {name!r} is not implemented; available: {', '.join(RUNNERS)}")
-    module, _, func = RUNNERS[name].partition(":")
-    return getattr(importlib.import_module(module), func)
 
 
 def execute(cfg: Config, run_dir: str | Path) -> str:
@@ -46,7 +31,7 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
     if previous is not None and previous != cfg_hash:
         moved = _supersede_keeping_hydra(run, cfg.runs_dir)
         log.warning("config changed (%s -> %s): previous run moved to %s", previous, cfg_hash, moved)
-    fn = resolve_runner(cfg.runner)
+    fn = runner_spec(cfg.runner).load()  # imports this runner's module (and simulator) only
     _configure_torch(cfg)
     seed_everything(derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).train)
     run.prepare(cfg, cfg_hash)

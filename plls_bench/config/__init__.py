@@ -24,19 +24,16 @@ from plls_bench.config.checks import (ConfigError, Validated, check, check_choic
 from plls_bench.config.learning import (ALGO_NAMES, BUDGET_NAMES, FEATURE_EXTRACTORS, PPO_ACTIVATIONS,
                                         TRANSITION_MODELS, AlgoConfig, BudgetConfig, DBCConfig, PPOConfig)
 from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_ACTIVATIONS, ActionReprConfig,
-                                     EnvConfig, ReprConfig, StateReprConfig, conv_sizes)
+                                     EnvConfig, ReprConfig, StateReprConfig)
 from plls_bench.devices import DEVICES
 
 __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "ENV_NAMES", "FEATURE_EXTRACTORS", "LATENT_CHOICES",
-           "PPO_ACTIVATIONS", "REPR_KINDS", "RUNNERS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
+           "PPO_ACTIVATIONS", "REPR_KINDS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
            "ActionReprConfig", "AlgoConfig", "BudgetConfig", "Config", "ConfigError", "DBCConfig", "EnvConfig",
            "FilmstripConfig", "PPOConfig", "ReprConfig", "StateReprConfig", "StudyConfig", "Validated", "check",
            "check_choice", "check_fraction", "check_nonnegative", "check_positive", "register_configs", "to_config"]
 
 # --------------------------------------------------------------------------- root
-RUNNERS = ("collect", "repr", "ppo", "dbc", "study")
-
-
 @dataclass
 class Config(Validated):
     """One run: what to run (runner, experiment), on which task, with which seed and budget."""
@@ -58,7 +55,10 @@ class Config(Validated):
     filmstrip: Optional[FilmstripConfig] = None
 
     def validate(self) -> None:
-        check_choice(self.runner, RUNNERS, "runner")
+        from plls_bench.runner_specs import RUNNERS  # lazy: the registry imports this package's modules
+
+        check_choice(self.runner, tuple(RUNNERS), "runner")
+        spec = RUNNERS[self.runner]
         check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
         check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
         check_choice(self.device, DEVICES, "device")
@@ -66,22 +66,9 @@ class Config(Validated):
         check(bool(self.experiment) and "/" not in self.experiment, "experiment",
               f"must be a non-empty name without '/', got {self.experiment!r}")
         check("/" not in self.variant, "variant", f"must not contain '/', got {self.variant!r}")
-        if self.runner in ("ppo", "dbc"):
-            check(self.algo.name == self.runner, "algo",
-                  f"runner={self.runner} needs algo={self.runner}, got algo.name={self.algo.name}")
-        if self.runner == "ppo" and self.algo.ppo is not None:
-            self._check_ppo_network(self.algo.ppo)
-        if self.runner == "repr":
-            check("vae" in (self.repr.state.kind, self.repr.action.kind), "repr",
-                  "runner=repr needs repr/state=vae or repr/action=vae (both are none)")
         if self.repr.state.kind == "vae":
             self._validate_state_vae()
-        if self.env.pixels:
-            self._check_pixel_encoders()
-        if self.runner == "study":
-            check(self.study is not None, "study", "runner=study needs a study section (+study=NAME)")
-            check(self.env.name == "mountaincar", "env", f"the studies are MountainCar's, got env {self.env.name}")
-            check(self.repr.action.kind == "vae", "repr.action.kind", "runner=study needs repr/action=vae")
+        spec.validate(self)  # the runner's own checks (plls_bench/config/runners.py)
 
     def _validate_state_vae(self) -> None:
         """V_s needs stored single frames, and its decoder must rebuild the frame's exact size."""
@@ -95,35 +82,6 @@ class Config(Validated):
         check(state.decoded_size(size) == size, "repr.state.deconv_kernel_sizes",
               f"{state.deconv_kernel_sizes} decode the {sizes[-1]}x{sizes[-1]} feature map to "
               f"{state.decoded_size(size)}x{state.decoded_size(size)}, not {size}x{size}")
-
-    def _check_pixel_encoders(self) -> None:
-        """The conv stack that sees the frames must leave a feature map of at least 1x1.
-
-        Caught here, not when the network is built after the run dir exists. V_s is checked by
-        :meth:`_validate_state_vae`; with V_s the policy sees vectors and has no conv stack.
-        """
-        size, dbc, ppo = self.env.image_size, self.algo.dbc, self.algo.ppo
-        if self.runner == "dbc" and dbc is not None:
-            sizes = conv_sizes(size, [3] * dbc.num_layers, [2] + [1] * (dbc.num_layers - 1))
-            check(min(sizes) >= 1, "env.image_size",
-                  f"{size}x{size} frames are too small for DBC's encoder (3x3 convs, stride 2 then 1, "
-                  f"algo.dbc.num_layers={dbc.num_layers}): spatial sizes {sizes}")
-        if self.runner == "ppo" and ppo is not None and ppo.features_extractor == "paper_cnn":
-            kernels = list(ppo.cnn_kernel_sizes)
-            sizes = conv_sizes(size, kernels, [ppo.cnn_stride] * len(kernels))
-            check(min(sizes) >= 1, "env.image_size",
-                  f"{size}x{size} frames are too small for the policy's convs (algo.ppo.cnn_kernel_sizes="
-                  f"{kernels}, algo.ppo.cnn_stride={ppo.cnn_stride}): spatial sizes {sizes}")
-
-    def _check_ppo_network(self, ppo: PPOConfig) -> None:
-        """The policy's trunk must fit what it sees: images unless V_s encodes them."""
-        images = self.env.pixels and self.repr.state.kind == "none"
-        want = "paper_cnn" if images else "mlp"
-        seen = "images" if images else "vectors"
-        fits = ppo.features_extractor == want or (not images and ppo.features_extractor == "separate_mlp")
-        check(fits, "algo.ppo.features_extractor",
-              f"{ppo.features_extractor} does not fit the policy's observations ({seen}: env={self.env.name}, "
-              f"repr.state={self.repr.state.kind}); use {want}")
 
 
 def register_configs() -> None:

@@ -1,0 +1,127 @@
+"""The runner registry: what each ``runner=NAME`` is, as typed :class:`RunnerSpec` entries.
+
+Everything that depends on which runner a config names asks here (config validation, the plan's
+order and costs, filmstrips, ``reproduce``) instead of comparing names. This module stays light:
+run functions and trained policies are reached through small loaders whose plain ``import``
+runs only when called, so choosing one task never imports another task's simulator (or torch).
+
+Adding a runner is one module with a ``run(cfg, run)`` function plus one entry in :data:`SPECS`
+(README, "Adding a runner").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+from plls_bench.config.runners import (validate_collect, validate_dbc, validate_ppo, validate_repr,
+                                       validate_study)
+
+if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
+    from plls_bench.config import Config
+    from plls_bench.runs import Run
+
+RunFn = Callable[["Config", "Run"], None]
+Act = Callable[[Any], Any]  # batched observations (1, *O) -> actions (1, *A), numpy arrays
+
+
+@dataclass(frozen=True)
+class TrainedPolicy:
+    """A run's last checkpointed policy, ready to act deterministically (filmstrips)."""
+
+    cfg: Config      # the run's recorded config, on the device the policy was loaded to
+    act: Act
+    checkpoint: str  # file name of the checkpoint it came from
+
+
+@dataclass(frozen=True)
+class RunnerSpec:
+    """One runner: how to load it, where it sits in a plan, what it costs, how its configs are checked."""
+
+    name: str
+    load: Callable[[], RunFn]                  # imports the runner's module when called
+    order: int                                 # plan order: artifacts before the runners that read them
+    validate: Callable[[Config], None]         # raises ConfigError naming the key
+    trains_policy: bool = False                # costed as train + eval env steps
+    uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
+    costs_per_run: bool = False                # a fixed cost per run (rate key ``<name>/<experiment>``)
+    load_policy: Callable[[Path, str], TrainedPolicy] | None = None  # (run dir, device); None: nothing to film
+
+    @property
+    def films(self) -> bool:
+        return self.load_policy is not None
+
+
+# --------------------------------------------------------------------------- loaders
+def _collect() -> RunFn:
+    from plls_bench.data import run
+    return run
+
+
+def _repr() -> RunFn:
+    from plls_bench.repr.train import run
+    return run
+
+
+def _study() -> RunFn:
+    from plls_bench.analysis.studies import run
+    return run
+
+
+def _ppo() -> RunFn:
+    from plls_bench.train.ppo import run
+    return run
+
+
+def _dbc() -> RunFn:
+    from plls_bench.train.dbc import run
+    return run
+
+
+def _ppo_policy(run_dir: Path, device: str) -> TrainedPolicy:
+    from dataclasses import replace
+
+    from plls_bench.train.agent import load_trained
+    from plls_bench.train.checkpoint import latest
+
+    trained = load_trained(run_dir, device)
+    found = latest(run_dir)
+    assert found is not None  # load_trained raised otherwise
+    # V_s / V_a join the policy on the device it was loaded to, not the recorded one
+    return TrainedPolicy(replace(trained.cfg, device=device), trained.act, found[0].name)
+
+
+def _dbc_policy(run_dir: Path, device: str) -> TrainedPolicy:
+    from plls_bench.train.dbc import to_env_action
+    from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
+
+    cfg, agent, space = load_trained_agent(run_dir, device)
+    return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
+                         Path(CHECKPOINT).name)
+
+
+# --------------------------------------------------------------------------- the registry
+SPECS: tuple[RunnerSpec, ...] = (
+    RunnerSpec("collect", _collect, order=0, validate=validate_collect, uses_dataset=True),
+    RunnerSpec("repr", _repr, order=1, validate=validate_repr, uses_dataset=True),
+    RunnerSpec("study", _study, order=2, validate=validate_study, uses_dataset=True, costs_per_run=True),
+    RunnerSpec("ppo", _ppo, order=3, validate=validate_ppo, trains_policy=True, load_policy=_ppo_policy),
+    RunnerSpec("dbc", _dbc, order=4, validate=validate_dbc, trains_policy=True, load_policy=_dbc_policy),
+)
+RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
+
+
+def runner_names() -> tuple[str, ...]:
+    return tuple(RUNNERS)
+
+
+def runner_spec(name: str) -> RunnerSpec:
+    """The spec of ``name``; KeyError listing the registered runners otherwise."""
+    if name not in RUNNERS:
+        raise KeyError(f"runner {name!r} is not implemented; available: {', '.join(RUNNERS)}")
+    return RUNNERS[name]
+
+
+def filming_runners() -> tuple[str, ...]:
+    """Runners whose runs hold a policy a filmstrip can show."""
+    return tuple(spec.name for spec in SPECS if spec.films)
