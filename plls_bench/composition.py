@@ -12,7 +12,7 @@ from hydra import compose as hydra_compose
 from hydra import initialize_config_dir
 from omegaconf import OmegaConf
 
-from plls_bench.config import Config, ConfigError, register_configs, to_config
+from plls_bench.config import Config, ConfigError, FilmstripConfig, register_configs, to_config
 from plls_bench.runs import variant_name
 
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
@@ -37,6 +37,13 @@ def compose(overrides: list[str] | tuple[str, ...] = (), config_name: str = "con
     except Exception as err:  # Hydra/OmegaConf composition errors: unknown group, typo, type
         raise ConfigError(describe_error(err)) from err
     return to_config(dcfg)
+
+
+def filmstrip_config(env: str, overrides: list[str] | tuple[str, ...] = ()) -> FilmstripConfig:
+    """``conf/filmstrip/<env>.yaml`` with ``overrides`` (``interval=8``), typed and validated."""
+    strip = compose([f"env={env}", f"+filmstrip={env}", *(f"filmstrip.{o}" for o in overrides)]).filmstrip
+    assert strip is not None
+    return strip
 
 
 def expand_sweeps(overrides: list[str]) -> list[list[str]]:

@@ -14,9 +14,12 @@ import sys
 import time
 from pathlib import Path
 
-from plls_bench.config import BUDGET_NAMES, ConfigError
+from plls_bench.composition import CONF_DIR, filmstrip_config
+from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError, FilmstripConfig
+from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile
-from plls_bench.runs import Run, config_hash, read_json
+from plls_bench.runner_specs import runner_spec
+from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json
 
 LAUNCHERS = ("local", "joblib", "slurm")
 EXIT_INTERRUPTED = 130
@@ -76,36 +79,52 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
 
 
 def filmed_presets() -> set[str]:
-    """Presets whose first trial a filmstrip figure shows (Figs 11, 19, 22), from the registry."""
-    from plls_bench.report import fig_images
-    from plls_bench.report.registry import ENTRIES
+    """Presets whose first trial is filmed (Figs 11, 19, 22): those a filmstrip config
+    (``conf/filmstrip/<env>.yaml``) lists, for runners whose spec has a policy to film."""
+    return set(_filmstrip_presets())
 
-    return {e.sources[0].experiment for e in ENTRIES if e.build is fig_images.filmstrip}
+
+def _filmstrip_presets() -> dict[str, FilmstripConfig]:
+    """Each filmed preset's filmstrip config, from ``conf/filmstrip/<env>.yaml``'s ``presets``."""
+    strips = {env: filmstrip_config(env) for env in ENV_NAMES if (CONF_DIR / "filmstrip" / f"{env}.yaml").exists()}
+    return {preset: strip for strip in strips.values() for preset in strip.presets}
 
 
 def film_policies(plans: list[PresetPlan]) -> list[str]:
     """Film the first trial of each filmed preset once it is done (``budget.eval_max_steps``
-    caps the episode, as for its test episodes); a filmstrip of the same run is not redone.
+    caps the episode, as for its test episodes); a filmstrip already made of the same run with
+    the same settings (its done marker, :class:`plls_bench.runs.RunOutput`) is not redone.
     Returns the presets whose filmstrip failed."""
-    failed, filmed = [], filmed_presets()
+    failed, filmed = [], _filmstrip_presets()
     for plan in plans:
-        if plan.experiment not in filmed or not plan.trials:
+        strip = filmed.get(plan.experiment)
+        if strip is None or not plan.trials:
+            continue
+        if not runner_spec(plan.runner).films:  # a filmstrip config that lists a preset with no policy
+            print(f"[reproduce] {plan.experiment}: listed in conf/filmstrip/{plan.env}.yaml, but runner "
+                  f"{plan.runner} has no policy to film", flush=True)
+            failed.append(f"{plan.experiment} (filmstrip)")
             continue
         trial = plan.trials[0]
-        run_hash = config_hash(trial.cfg)
-        if not Run(trial.run_dir).is_done(run_hash):
+        run_hash, cap = config_hash(trial.cfg), trial.cfg.budget.eval_max_steps
+        run = Run(trial.run_dir)
+        if not run.is_done(run_hash):
             print(f"[reproduce] {plan.experiment}: no filmstrip, seed={trial.seed} is not done", flush=True)
             continue
-        meta = read_json(trial.run_dir / "filmstrip" / "filmstrip.json") or {}
-        if meta.get("run_config_hash") == run_hash and meta.get("run_status") == "done":
+        if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue
-        cap = trial.cfg.budget.eval_max_steps
         command = [sys.executable, "-m", "plls_bench.analysis.filmstrip", str(trial.run_dir),
                    *(["--max-steps", str(cap)] if cap else [])]
         if subprocess.run(command).returncode != 0:
             failed.append(f"{plan.experiment} (filmstrip)")
     return failed
+
+
+def _legacy_hash(path: Path) -> str | None:
+    """A strip from before done markers: its identity from the filmstrip.json it ends with."""
+    meta = read_json(path / "filmstrip.json")
+    return filmstrip_hash(meta) if isinstance(meta, dict) else None
 
 
 def export_run_records(runs_dir: str) -> None:
@@ -121,12 +140,12 @@ def export_run_records(runs_dir: str) -> None:
 
 
 def collect_results(runs_dir: str, out_dir: str) -> int:
-    """Regenerate every table and figure from the runs (gaps from failed presets are reported)."""
-    from plls_bench.report.__main__ import main as report_main  # lazy: plotting stack
-
+    """Regenerate every table and figure from the runs (gaps from failed presets are reported).
+    A command of its own: the launcher does not import the report package."""
     Path(runs_dir).mkdir(parents=True, exist_ok=True)  # a profile whose presets all failed
     print(f"[reproduce] results collector: {runs_dir} -> {out_dir}", flush=True)
-    return report_main(["--runs", runs_dir, "--out", out_dir, "--no-progress"])
+    command = [sys.executable, "-m", "plls_bench.report", "--runs", runs_dir, "--out", out_dir, "--no-progress"]
+    return subprocess.run(command).returncode
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -8,6 +8,8 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
     checkpoints/          whatever the runner needs to resume
     status.json           written last and atomically: running -> done | failed (with the error)
+    filmstrip/            a sub-output made after the run (:data:`RUN_OUTPUTS`, :class:`RunOutput`):
+                          its files, then done.json with its own config hash
 
 Nothing outside this module writes into a run directory except through :class:`Run`.
 """
@@ -41,6 +43,8 @@ HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
 # must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
 # value instead of dropping the key keeps the hashes of existing runs, which stay done/resumable.
 HASH_PINNED_KEYS = {"device": "cpu"}
+# Sub-outputs made from a finished run by a later command, each in ``<run dir>/<name>/``.
+RUN_OUTPUTS = ("filmstrip",)
 
 
 # --------------------------------------------------------------------------- atomic files
@@ -247,6 +251,40 @@ class Run:
         path = self.path / relpath
         atomic_write_bytes(path, data)
         return path
+
+    def output(self, name: str) -> RunOutput:
+        """The declared sub-output ``name`` (:data:`RUN_OUTPUTS`) of this run."""
+        if name not in RUN_OUTPUTS:
+            raise KeyError(f"{name!r} is not a declared run output; declared: {', '.join(RUN_OUTPUTS)}")
+        return RunOutput(self.path / name)
+
+
+class RunOutput:
+    """A sub-output directory: every file written atomically, then ``done.json`` with the hash of
+    the config that made it, so an output cut off half-way is never taken for made."""
+
+    MARKER = "done.json"
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    def is_made(self, cfg_hash: str, legacy: Callable[[Path], str | None] | None = None) -> bool:
+        """Made with ``cfg_hash``. Outputs written before they had a marker: ``legacy(path)``
+        reads their hash from their own files (None: not made)."""
+        marker = read_json(self.path / self.MARKER)
+        if marker is None:
+            return legacy is not None and legacy(self.path) == cfg_hash
+        return marker.get("state") == STATUS_DONE and marker.get("config_hash") == cfg_hash
+
+    def write(self, cfg_hash: str, files: dict[str, Any]) -> None:
+        """Write ``files`` in order (bytes as they are, anything else as JSON), then the marker."""
+        (self.path / self.MARKER).unlink(missing_ok=True)  # stale from here until every file is new
+        for relpath, content in files.items():
+            if isinstance(content, bytes):
+                atomic_write_bytes(self.path / relpath, content)
+            else:
+                atomic_write_json(self.path / relpath, content)
+        atomic_write_json(self.path / self.MARKER, {"state": STATUS_DONE, "config_hash": cfg_hash, "updated": _now()})
 
 
 def iter_run_dirs(runs_dir: str | Path) -> Iterable[Path]:

@@ -108,3 +108,34 @@ def test_cli_refuses_a_run_without_a_policy_or_checkpoint(tmp_path: Path) -> Non
         assert not (tmp_path / name / "filmstrip").exists()
     bad = film(str(tmp_path / "ppo"), "interval=0")
     assert bad.returncode == 2 and "filmstrip.interval" in bad.stderr
+
+
+def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """Which presets are filmed comes from conf/filmstrip; a strip made of the same done run with
+    the same settings (its done marker, or an older strip's filmstrip.json) is not made again."""
+    from plls_bench import reproduce
+    from plls_bench.plan import plan_profile
+    from plls_bench.runs import Run, config_hash
+
+    commands: list[list[str]] = []
+    monkeypatch.setattr(reproduce.subprocess, "run",
+                        lambda cmd: commands.append(cmd) or subprocess.CompletedProcess(cmd, 0))
+    plans = plan_profile("smoke", str(tmp_path / "runs"), ["mountaincar_plls_ppo", "mountaincar_ppo"], rates={})
+    trial = next(p for p in plans if p.experiment == "mountaincar_plls_ppo").trials[0]
+    assert reproduce.film_policies(plans) == [] and commands == []  # not done yet; plain PPO is never filmed
+    assert "mountaincar_plls_ppo: no filmstrip, seed=0 is not done" in capsys.readouterr().out
+    run_hash = config_hash(trial.cfg)
+    Run(trial.run_dir).write_status("done", config_hash=run_hash)
+    assert reproduce.film_policies(plans) == [] and len(commands) == 1 and str(trial.run_dir) in commands[0]
+
+    strip, output = filmstrip_config("mountaincar"), Run(trial.run_dir).output("filmstrip")
+    meta = {"settings": strip.settings(), "max_steps": trial.cfg.budget.eval_max_steps or None,
+            "run_config_hash": run_hash, "run_status": "done"}
+    output.write(strip.output_hash(run_hash, "done", trial.cfg.budget.eval_max_steps), {"filmstrip.json": meta})
+    (output.path / "done.json").unlink()  # as a strip written before done markers: read from filmstrip.json
+    for made in (True, False):
+        capsys.readouterr()
+        assert reproduce.film_policies(plans) == []
+        assert ("filmstrip already made" in capsys.readouterr().out) is made and len(commands) == 2 - made
+        output.write("another strip", {"filmstrip.json": {**meta, "settings": {**meta["settings"], "interval": 8}}})

@@ -35,6 +35,36 @@ def test_truncate_drops_rows_after_the_checkpoint(tmp_path: Path) -> None:
     assert [r["step"] for r in run.read_metrics("eval")] == [0, 1, 2]
 
 
+def test_a_run_output_is_made_only_once_every_file_and_its_marker_are_written(tmp_path: Path,
+                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    strip = Run(tmp_path).output("filmstrip")
+    assert strip.path == tmp_path / "filmstrip" and not strip.is_made("h1")
+    strip.write("h1", {"frames.npz": b"npz", "filmstrip.json": {"interval": 4}})
+    assert strip.is_made("h1") and not strip.is_made("h2")
+    assert (strip.path / "frames.npz").read_bytes() == b"npz"
+    assert json.loads((strip.path / "filmstrip.json").read_text()) == {"interval": 4}
+    assert sorted(p.name for p in strip.path.iterdir()) == ["done.json", "filmstrip.json", "frames.npz"]
+
+    def torn(path: Path, data: bytes) -> None:  # the second file's write is killed
+        if path.name == "filmstrip.json":
+            raise KeyboardInterrupt
+        path.write_bytes(data)
+
+    monkeypatch.setattr("plls_bench.runs.atomic_write_bytes", torn)
+    with pytest.raises(KeyboardInterrupt):
+        strip.write("h2", {"frames.npz": b"new", "filmstrip.json": {"interval": 8}})
+    assert not strip.is_made("h1") and not strip.is_made("h2")  # half old, half new: made with neither
+    with pytest.raises(KeyError, match="not a declared run output"):
+        Run(tmp_path).output("videos")
+
+
+def test_a_run_output_without_a_marker_is_read_through_its_legacy_hash(tmp_path: Path) -> None:
+    strip = Run(tmp_path).output("filmstrip")
+    atomic_write_json(strip.path / "filmstrip.json", {"hash": "old"})  # written before markers
+    legacy = lambda path: json.loads((path / "filmstrip.json").read_text())["hash"]  # noqa: E731
+    assert strip.is_made("old", legacy) and not strip.is_made("new", legacy) and not strip.is_made("old")
+
+
 def test_variant_names() -> None:
     assert variant_name("auto", "") == "default"
     assert variant_name("auto", "repr/state=none,seed=3") == "repr.state=none,seed=3"

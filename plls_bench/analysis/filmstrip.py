@@ -5,14 +5,17 @@ same V_s / V_a wrappers as in training), seeded as the trial's evaluation episod
 ``filmstrip.episode``, with a frame every ``filmstrip.interval`` env frames and at its last step.
 Settings: ``conf/filmstrip/<env>.yaml``. Writes ``<out>/frames.npz`` (``frames`` ``(k, H, W, 3)``
 uint8, ``frame_steps`` ``(k,)``) and then ``<out>/filmstrip.json`` (``interval``, ``frame_steps``,
-``episode_return``, ``steps_to_goal``, ``checkpoint``, ...); ``<out>`` is ``RUN_DIR/filmstrip``.
+``episode_return``, ``steps_to_goal``, ``checkpoint``, ...); ``<out>`` is ``RUN_DIR/filmstrip``,
+the run's declared sub-output, written through :class:`plls_bench.runs.RunOutput`: both files
+atomically, then ``done.json`` with the strip's hash (:meth:`FilmstripConfig.output_hash`).
+Which runners hold a policy to film, and how to load it, is their
+:class:`~plls_bench.runner_specs.RunnerSpec`'s ``load_policy``.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import sys
-from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Callable
 
@@ -21,10 +24,14 @@ import gymnasium as gym
 import numpy as np
 
 from plls_bench.artifacts import npz_bytes
+from plls_bench.composition import filmstrip_config
 from plls_bench.config import Config, ConfigError, FilmstripConfig
 from plls_bench.devices import require_device
-from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
+from plls_bench.runner_specs import RUNNERS, TrainedPolicy, filming_runners
+from plls_bench.runs import Run, RunOutput, read_json
 from plls_bench.seeding import derive_seeds
+
+__all__ = ["FrameRecorder", "filmstrip_config", "main", "make_filmstrip", "policy_loader", "record"]
 
 Act = Callable[[np.ndarray], np.ndarray]  # batched observations (1, *O) -> actions (1, *A)
 
@@ -105,36 +112,13 @@ def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0) ->
 
 
 # --------------------------------------------------------------------------- trained policies
-def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
-    from plls_bench.train.agent import load_trained
-    from plls_bench.train.checkpoint import latest
-
-    trained = load_trained(run_dir, device)
-    cfg = replace(trained.cfg, device=device)  # V_s / V_a join the policy here, not on the recorded device
-    found = latest(run_dir)
-    assert found is not None  # load_trained raised otherwise
-    return cfg, trained.act, found[0].name
-
-
-def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
-    from plls_bench.train.dbc import to_env_action
-    from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
-
-    cfg, agent, space = load_trained_agent(run_dir, device)
-    return cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space), Path(CHECKPOINT).name
-
-
-# runner -> (run dir, device) -> (typed config, deterministic policy, checkpoint name)
-POLICIES: dict[str, Callable[[Path, str], tuple[Config, Act, str]]] = {"ppo": _ppo_policy, "dbc": _dbc_policy}
-
-
-def filmstrip_config(env: str, overrides: list[str]) -> FilmstripConfig:
-    """``conf/filmstrip/<env>.yaml`` with ``overrides`` (``interval=8``), typed and validated."""
-    from plls_bench.composition import compose
-
-    strip = compose([f"env={env}", f"+filmstrip={env}", *(f"filmstrip.{o}" for o in overrides)]).filmstrip
-    assert strip is not None
-    return strip
+def policy_loader(run_dir: Path, runner: str | None) -> Callable[[Path, str], TrainedPolicy]:
+    """How the run's runner spec loads its policy; ConfigError for a runner without one."""
+    spec = RUNNERS.get(runner or "")
+    if spec is None or spec.load_policy is None:
+        raise ConfigError(f"{run_dir}: runner {runner!r} has no policy to film; filmstrips exist for "
+                          f"{', '.join(filming_runners())}")
+    return spec.load_policy
 
 
 def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] | None = None,
@@ -143,24 +127,21 @@ def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] 
     record_json = read_json(run_dir / "config.json")
     if record_json is None:
         raise ConfigError(f"{run_dir}: no readable config.json, not a run directory")
-    runner = record_json["config"].get("runner")
-    if runner not in POLICIES:
-        raise ConfigError(f"{run_dir}: runner {runner!r} has no policy to film; filmstrips exist for "
-                          f"{', '.join(POLICIES)}")
+    load = policy_loader(run_dir, record_json["config"].get("runner"))
     strip = filmstrip_config(record_json["config"]["env"]["name"], overrides or [])
-    cfg, act, checkpoint = POLICIES[runner](run_dir, device)
-    rec = record(cfg, act, strip, max_steps)
+    policy = load(run_dir, device)
+    rec = record(policy.cfg, policy.act, strip, max_steps)
     status = read_json(run_dir / "status.json") or {}
     meta = {"interval": strip.interval, "frame_steps": rec.frame_steps, "episode_return": rec.episode_return,
             "steps_to_goal": rec.length if strip.goal and rec.terminated else None,
-            "episode_length": rec.length, "terminated": rec.terminated, "checkpoint": checkpoint,
+            "episode_length": rec.length, "terminated": rec.terminated, "checkpoint": policy.checkpoint,
             "run_status": status.get("state"), "run_config_hash": status.get("config_hash"),
-            "max_steps": max_steps or None,
-            "settings": asdict(strip)}
-    out = out or run_dir / "filmstrip"
-    atomic_write_bytes(out / "frames.npz", npz_bytes({"frames": np.stack(rec.frames),
-                                                      "frame_steps": np.asarray(rec.frame_steps, dtype=np.int64)}))
-    atomic_write_json(out / "filmstrip.json", meta)  # last: a complete filmstrip has both files
+            "max_steps": max_steps or None, "settings": strip.settings()}
+    output = RunOutput(out) if out else Run(run_dir).output("filmstrip")
+    frames = npz_bytes({"frames": np.stack(rec.frames), "frame_steps": np.asarray(rec.frame_steps, dtype=np.int64)})
+    # filmstrip.json after the frames, as before markers: a strip with both files is complete
+    output.write(strip.output_hash(meta["run_config_hash"], meta["run_status"], max_steps),
+                 {"frames.npz": frames, "filmstrip.json": meta})
     return meta
 
 

@@ -1,11 +1,13 @@
 """Schemas of the MountainCar latent-space studies and of policy filmstrips (``study/``, ``filmstrip/``)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from omegaconf import MISSING
 
 from plls_bench.config.checks import Validated, check, check_choice, check_positive
+from plls_bench.runs import stable_hash
 
 
 # --------------------------------------------------------------------------- studies
@@ -68,6 +70,8 @@ class FilmstripConfig(Validated):
     ``interval`` env frames (steps counting action repeat), and its last frame.
 
     ``python -m plls_bench.analysis.filmstrip RUN_DIR`` composes ``conf/filmstrip/<env>.yaml``.
+    ``presets`` declares which experiment presets ``reproduce`` films (their first trial, once
+    done); it says nothing about how a strip is recorded, so it is not in :meth:`settings`.
     """
 
     interval: int = MISSING
@@ -75,9 +79,29 @@ class FilmstripConfig(Validated):
     goal: bool = False
     episode: int = 0
     frame_height: int = 200
+    presets: list[str] = field(default_factory=list)
+
+    def settings(self) -> dict[str, Any]:
+        """What the recording depends on (written into filmstrip.json, hashed into its identity)."""
+        return {k: v for k, v in asdict(self).items() if k != "presets"}
+
+    def output_hash(self, run_config_hash: str | None, run_status: str | None, max_steps: int) -> str:
+        """Identity of a strip: these settings and step cap, of a run in this config and state
+        (a strip of an unfinished run's checkpoint is not the strip of the done run)."""
+        return filmstrip_hash({"settings": self.settings(), "max_steps": max_steps or None,
+                               "run_config_hash": run_config_hash, "run_status": run_status})
 
     def validate(self) -> None:
         check_positive(self.interval, "filmstrip.interval")
         check(isinstance(self.episode, int) and self.episode >= 0, "filmstrip.episode",
               f"must be a non-negative int, got {self.episode!r}")
         check_positive(self.frame_height, "filmstrip.frame_height")
+        for i, name in enumerate(self.presets):
+            check(bool(name) and "/" not in name, f"filmstrip.presets[{i}]", f"must be a preset name, got {name!r}")
+
+
+def filmstrip_hash(meta: dict[str, Any]) -> str:
+    """The identity hash of a strip from filmstrip.json's fields; also reads strips written before
+    strips had a done marker of their own, whose filmstrip.json holds these same fields."""
+    keys = ("settings", "max_steps", "run_config_hash", "run_status")
+    return stable_hash({key: meta.get(key) for key in keys})

@@ -1,0 +1,105 @@
+"""The runner registry: every runner has a typed spec with its own config checks; every preset and
+every filmed preset names a registered runner that fits; the registry imports no simulator."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+from plls_bench.composition import filmstrip_config
+from plls_bench.config import ENV_NAMES, Config, ConfigError
+from plls_bench.plan import list_presets
+from plls_bench.reproduce import filmed_presets
+from plls_bench.runner_specs import RUNNERS, SPECS, filming_runners, runner_spec
+from tests.conftest import REPO_ROOT, compose_preset
+
+
+def _set(path: str, value: object) -> Callable[[Config], None]:
+    """Set a dotted field of a composed (already validated) config, bypassing validation."""
+    def apply(cfg: Config) -> None:
+        *parents, leaf = path.split(".")
+        node: object = cfg
+        for part in parents:
+            node = getattr(node, part)
+        setattr(node, leaf, value)
+    return apply
+
+
+# runner -> (a preset it accepts, the Hydra override that breaks it, the same break on the object, the key named)
+BAD_FOR_RUNNER: dict[str, tuple[str, str, Callable[[Config], None], str]] = {
+    "collect": ("mountaincar_data", "algo=ppo", _set("algo.name", "ppo"), "algo"),
+    "repr": ("mountaincar_va", "repr/action=none", _set("repr.action.kind", "none"), "repr"),
+    "study": ("mountaincar_onestep", "repr/action=none", _set("repr.action.kind", "none"), "repr.action.kind"),
+    "ppo": ("mountaincar_ppo", "algo.ppo.features_extractor=paper_cnn",
+            _set("algo.ppo.features_extractor", "paper_cnn"), "algo.ppo.features_extractor"),
+    "dbc": ("cheetah_dbc", "env.image_size=4", _set("env.image_size", 4), "env.image_size"),
+}
+
+
+def test_every_registered_runner_has_a_bad_config_case() -> None:
+    assert set(BAD_FOR_RUNNER) == set(RUNNERS) == {spec.name for spec in SPECS}
+    assert sorted(spec.order for spec in SPECS) == list(range(len(SPECS)))  # one plan position each
+
+
+@pytest.mark.parametrize("name", list(BAD_FOR_RUNNER))
+def test_a_runners_own_validation_rejects_a_bad_config_naming_the_key(name: str, tmp_path: Path) -> None:
+    preset, override, breaks, key = BAD_FOR_RUNNER[name]
+    spec = runner_spec(name)
+    cfg = compose_preset(preset, tmp_path)
+    assert cfg.runner == name
+    spec.validate(cfg)  # the shipped preset passes its runner's checks
+    breaks(cfg)
+    with pytest.raises(ConfigError) as err:
+        spec.validate(cfg)
+    message = str(err.value)
+    assert message.splitlines() == [message] and message.startswith(f"{key}: "), message
+    with pytest.raises(ConfigError) as composed:  # and composing it is refused by Config.validate
+        compose_preset(preset, tmp_path, override)
+    assert str(composed.value).startswith(f"{key}: ") and len(str(composed.value).splitlines()) == 1
+
+
+def test_an_unregistered_runner_is_refused_naming_the_key(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"^runner: unknown value 'sac'; choose one of collect, repr"):
+        compose_preset("mountaincar_ppo", tmp_path, "runner=sac")
+    with pytest.raises(KeyError, match="not implemented"):
+        runner_spec("sac")
+
+
+@pytest.mark.parametrize("preset", list_presets())
+def test_every_preset_runs_a_registered_runner(preset: str, tmp_path: Path) -> None:
+    cfg = compose_preset(preset, tmp_path)
+    assert cfg.runner in RUNNERS, f"{preset}: runner {cfg.runner!r} is not in plls_bench/runner_specs.py"
+    runner_spec(cfg.runner).validate(cfg)
+
+
+def test_filmed_presets_are_declared_for_runners_with_a_policy(tmp_path: Path) -> None:
+    """conf/filmstrip/<env>.yaml lists presets of that env whose runner's spec can load a policy,
+    and exactly the presets the report's filmstrip figures show (Figs 11, 19, 22)."""
+    from plls_bench.report import fig_images
+    from plls_bench.report.registry import ENTRIES
+
+    for env in ENV_NAMES:
+        for preset in filmstrip_config(env).presets:
+            cfg = compose_preset(preset, tmp_path)
+            assert cfg.env.name == env and cfg.runner in filming_runners(), preset
+    shown = {e.sources[0].experiment for e in ENTRIES if e.build is fig_images.filmstrip}
+    assert filmed_presets() == shown
+    assert set(filming_runners()) == {"ppo", "dbc"}
+
+
+def test_the_registry_and_config_validation_import_no_simulator_or_torch() -> None:
+    code = ("import sys; from plls_bench.composition import compose; import plls_bench.runner_specs; "
+            "import plls_bench.reproduce; compose(['+experiment=cheetah_plls_dbc']); "
+            "print(sorted({m.split('.')[0] for m in sys.modules} & "
+            "{'torch', 'gymnasium', 'dm_control', 'mujoco', 'cv2', 'stable_baselines3', 'matplotlib'}))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr
+
+
+@pytest.mark.parametrize("name", list(RUNNERS))
+def test_each_spec_loads_its_run_function(name: str) -> None:
+    fn = runner_spec(name).load()
+    assert callable(fn) and fn.__name__ == "run"
