@@ -112,3 +112,45 @@ def test_backend_separates_hashes_keys_and_run_dirs(runs_dir: Path) -> None:
     assert variant_name("auto", "", "envpool") == "env.backend=envpool"
     assert variant_name("auto", "env.backend=envpool", "envpool") == "env.backend=envpool"
     assert variant_name("auto", "seed=1", "gymnasium") == "seed=1"
+
+
+@pytest.mark.slow
+def test_backend_validation_at_small_size(runs_dir: Path, tmp_path: Path) -> None:
+    """The validation report end to end: 3 tracks per backend, a smoke V_s trained on envpool
+    frames for the cross-reconstruction; the report's numbers agree with its per-episode data."""
+    import json
+
+    from plls_bench.analysis import backend_validation
+    from plls_bench.repr import get_state_vae
+
+    get_state_vae(compose_preset("carracing_vs", runs_dir, "env.backend=envpool"))
+    out = tmp_path / "analysis"
+    backend_validation.main(["--episodes", "3", "--steps", "30", "--budget", "smoke", "--runs", str(runs_dir),
+                             "--out", str(out)])
+    report = json.loads((out / "backend_validation.json").read_text())
+    for backend in backend_validation.BACKENDS:
+        returns = report["summary"]["per_episode_returns"][backend]
+        assert len(returns) == 3
+        assert report["summary"]["returns"][backend]["mean"] == pytest.approx(np.mean(returns))
+        assert report["summary"]["lengths"][backend]["mean"] == 30
+    rec = report["reconstruction"]
+    assert rec["trained_on"] == "envpool" and set(rec["mse"]) == {"gymnasium", "envpool"}
+    assert rec["ratio_other_to_own"] == pytest.approx(rec["mse"]["gymnasium"] / rec["mse"]["envpool"])
+    assert "V_s trained on envpool frames" in (out / "backend_validation.md").read_text()
+
+
+def test_two_sample_statistics_match_scipy() -> None:
+    from scipy import stats
+
+    from plls_bench.analysis.backend_validation import mean_ci, two_sample
+
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(0, 1, 40), rng.normal(0.8, 2, 35)
+    m = mean_ci(a)
+    low, high = stats.t.interval(0.95, len(a) - 1, loc=a.mean(), scale=stats.sem(a))
+    assert (m["ci_low"], m["ci_high"]) == pytest.approx((low, high))
+    t = two_sample(a, b)
+    assert t["diff"] == pytest.approx(b.mean() - a.mean())
+    assert t["welch_p"] == pytest.approx(stats.ttest_ind(b, a, equal_var=False).pvalue)
+    assert t["diff_ci_low"] < t["diff"] < t["diff_ci_high"]
+    assert two_sample(np.full(5, 1000.0), np.full(5, 1000.0))["welch_p"] == 1.0
