@@ -2,6 +2,7 @@
 
     nice -n 10 .venv/bin/python bench/throughput.py                 # every preset (about 15 minutes)
     nice -n 10 .venv/bin/python bench/throughput.py --keys collect/ repr_action/   # refresh some keys
+    nice -n 10 .venv/bin/python bench/throughput.py --backend envpool --presets carracing_data carracing_plls_ppo
 
 Measures, on this machine, the rates ``plls_bench/plan.py`` multiplies work by: random-policy
 collection (env steps/s, ``collect/<env>``), V_s / V_a training (samples/s over one epoch of
@@ -30,6 +31,7 @@ from bench import dbc_throughput, ppo_throughput  # noqa: E402
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import Config  # noqa: E402
+from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
 from plls_bench.plan import THROUGHPUT_FILE, list_presets  # noqa: E402
 from plls_bench.runs import atomic_write_json  # noqa: E402
 
@@ -95,25 +97,33 @@ TINY_REPR = ("budget.data_episodes=2", "budget.data_steps_per_episode=100", "bud
 
 
 def rate_keys(cfg: Config) -> list[str]:
-    """The rate keys ``plls_bench.plan`` looks up for a preset."""
+    """The rate keys ``plls_bench.plan`` looks up for a preset (env-bound ones per backend)."""
     env, preset = cfg.env.name, cfg.experiment
+    engine = "" if cfg.env.backend == "gymnasium" else f"@{cfg.env.backend}"
     if cfg.runner == "collect":
-        return [f"collect/{env}"]
+        return [f"collect/{env}{engine}"]
     if cfg.runner == "repr":
         return [f"repr_{w}/{env}" for w in ("state", "action") if getattr(cfg.repr, w).kind == "vae"]
     if cfg.runner == "study":
         return [f"study/{preset}"]
-    return [f"train/{preset}", f"eval/{preset}"]
+    return [f"train/{preset}{engine}", f"eval/{preset}{engine}"]
 
 
 def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float, str]]:
     """Measured rates of ``preset``'s keys that ``args.keys`` selects: key -> (value, unit)."""
-    cfg = _config(preset, args.budget, args.runs)
-    if args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in rate_keys(cfg)):
+    engine = (f"env.backend={args.backend}",)  # explicit: a profile may choose another backend
+    if args.backend != "gymnasium":
+        base = _config(preset, args.budget, args.runs)
+        # envpool's tasks only; representation training and studies do not step the env
+        if base.env.gym_id not in ENVPOOL_GYM_IDS or base.runner not in ("collect", "ppo"):
+            return {}
+    cfg = _config(preset, args.budget, args.runs, *engine)
+    keys = rate_keys(cfg)
+    if args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in keys):
         return {}
-    env, rates = cfg.env.name, {}
+    rates: dict[str, tuple[float, str]] = {}
     if cfg.runner == "collect":
-        rates[f"collect/{env}"] = (collect_rate(cfg, args.collect_steps), "env steps/s")
+        rates[keys[0]] = (collect_rate(cfg, args.collect_steps), "env steps/s")
     elif cfg.runner == "repr":
         for which, samples in (("state", args.state_samples), ("action", args.action_samples)):
             if getattr(cfg.repr, which).kind == "vae":
@@ -122,16 +132,17 @@ def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float
         rates[f"study/{preset}"] = (study_rate(cfg, args.runs), "runs/s")
     elif cfg.runner == "ppo":
         horizon = [f"algo.ppo.n_steps={args.ppo_steps}"] if args.ppo_steps else []
-        m = ppo_throughput.measure(preset, args.budget, args.ppo_iterations, args.runs, [*TINY_REPR, *horizon])
-        rates[f"train/{preset}"] = (m["sps"], "env steps/s")
-        rates[f"eval/{preset}"] = (m["rollout_sps"], "env steps/s")  # acting without updates
+        m = ppo_throughput.measure(preset, args.budget, args.ppo_iterations, args.runs,
+                                   [*TINY_REPR, *horizon, *engine])
+        rates[keys[0]] = (m["sps"], "env steps/s")
+        rates[keys[1]] = (m["rollout_sps"], "env steps/s")  # acting without updates
     elif cfg.runner == "dbc":
         m = dbc_throughput.measure(preset, args.budget, 1, args.dbc_steps, args.dbc_updates, args.runs,
-                                   list(TINY_REPR))
+                                   [*TINY_REPR, *engine])
         # one update per agent step, i.e. per action_repeat env steps
         seconds_per_env_step = 1.0 / m["env_sps"] + m["update_s"] / cfg.env.action_repeat
-        rates[f"train/{preset}"] = (1.0 / seconds_per_env_step, "env steps/s")
-        rates[f"eval/{preset}"] = (m["env_sps"], "env steps/s")
+        rates[keys[0]] = (1.0 / seconds_per_env_step, "env steps/s")
+        rates[keys[1]] = (m["env_sps"], "env steps/s")
     return rates
 
 
@@ -164,6 +175,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--presets", nargs="+", default=None, help="presets to measure (default: all)")
     parser.add_argument("--keys", nargs="+", default=None, help="only rate keys starting with these")
     parser.add_argument("--budget", default="quick", help="budget whose algorithm settings are used")
+    parser.add_argument("--backend", default="gymnasium", choices=ENV_BACKENDS,
+                        help="env.backend to measure (envpool: the tasks it ships; keys get @envpool)")
     parser.add_argument("--collect-steps", type=int, default=200, help="steps per env of collection")
     parser.add_argument("--state-samples", type=int, default=500, help="frames in the V_s epoch")
     parser.add_argument("--action-samples", type=int, default=20000, help="actions in the V_a epoch")

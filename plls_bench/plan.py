@@ -98,7 +98,7 @@ def _plan_preset(experiment: str, profile: str, runs_dir: str) -> PresetPlan:
     for seed in range(first.budget.trials):
         # the seed is a plain field that no other value interpolates: replace() equals composing seed=k
         cfg = dataclasses.replace(first, seed=seed)
-        path = run_dir_path(runs_dir, experiment, variant_name(cfg.variant), seed)
+        path = run_dir_path(runs_dir, experiment, variant_name(cfg.variant, "", cfg.env.backend), seed)
         trials.append(Trial(seed, path, Run(path).is_done(config_hash(cfg)), cfg))
     rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
@@ -123,18 +123,19 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
 
     env, budget, work, spec = cfg.env.name, cfg.budget, [], runner_spec(cfg.runner)
+    engine = "" if cfg.env.backend == "gymnasium" else f"@{cfg.env.backend}"  # env-bound rates differ per backend
     needs_data = spec.uses_dataset or "vae" in (cfg.repr.state.kind, cfg.repr.action.kind)
     data_steps = budget.data_episodes * budget.data_steps_per_episode
     if needs_data and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
-        work.append((f"collect/{env}", data_steps))
+        work.append((f"collect/{env}{engine}", data_steps))
     for which in ("state", "action"):
         kind = f"repr_{which}"
         if getattr(cfg.repr, which).kind == "vae" and _first(costed, cfg.runs_dir, kind, _repr_identity(cfg, which)):
             samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
             work.append((f"{kind}/{env}", samples))
     if spec.trains_policy:
-        work.append((f"train/{cfg.experiment}", budget.train_env_steps))
-        work.append((f"eval/{cfg.experiment}", _eval_env_steps(cfg)))
+        work.append((f"train/{cfg.experiment}{engine}", budget.train_env_steps))
+        work.append((f"eval/{cfg.experiment}{engine}", _eval_env_steps(cfg)))
     if spec.costs_per_run:
         work.append((f"{spec.name}/{cfg.experiment}", 1))
     return work

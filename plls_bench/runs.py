@@ -37,6 +37,7 @@ HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
 HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
     "algo.ppo.use_sde": False, "algo.ppo.sde_sample_freq": 0,
     "algo.ppo.normalize_obs": False, "algo.ppo.normalize_reward": False,
+    "env.backend": "gymnasium", "env.backend_threads": 0,
 }
 # Config keys hashed at a fixed value, whatever the config says. ``device`` changes where a run
 # computes, not what it computes statistically (CPU and GPU kernels differ in rounding only), so it
@@ -158,11 +159,17 @@ def config_hash(cfg: Any) -> str:
 _SAFE = re.compile(r"[^A-Za-z0-9_.,=+-]")
 
 
-def variant_name(variant: str, override_dirname: str = "") -> str:
-    """The run dir's variant part: an explicit ``variant``, else the overrides, else ``default``."""
+def variant_name(variant: str, override_dirname: str = "", backend: str = "gymnasium") -> str:
+    """The run dir's variant part: an explicit ``variant``, else the overrides, else ``default``.
+
+    A non-default ``env.backend`` always shows in the name, also when a profile (not the command
+    line) chose it: runs of two simulators must never share a run dir."""
     if variant and variant != "auto":
         return variant
     name = _SAFE.sub("_", override_dirname.replace("/", "."))
+    tag = f"env.backend={backend}"
+    if backend != "gymnasium" and tag not in name.split(","):
+        name = f"{name},{tag}" if name else tag
     return name[:120] or "default"
 
 

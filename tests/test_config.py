@@ -125,6 +125,10 @@ BAD_INPUTS = [
     (["+experiment=mountaincar_ppo", "algo.ppo.sde_sample_freq=-1"], "algo.ppo.sde_sample_freq"),
     (["+experiment=mountaincar_ppo", "algo.ppo.sde_sample_freq=4"], "algo.ppo.sde_sample_freq"),  # without gSDE
     (["+experiment=mountaincar_ppo", "algo/exploration=levy"], "algo/exploration"),
+    # env backends: an unknown engine, and envpool for a task it does not ship
+    (["+experiment=carracing_ppo", "env.backend=brax"], "env.backend"),
+    (["+experiment=cheetah_dbc", "env.backend=envpool"], "env.backend"),
+    (["+experiment=carracing_ppo", "env.backend=envpool", "env.backend_threads=-1"], "env.backend_threads"),
 ]
 
 

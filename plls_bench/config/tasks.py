@@ -10,6 +10,10 @@ from plls_bench.config.checks import Validated, check, check_choice, check_fract
 ENV_NAMES = ("mountaincar", "carracing", "cheetah")
 REPR_KINDS = ("none", "vae")
 DATA_POLICIES = ("uniform", "correlated")
+ENV_BACKENDS = ("gymnasium", "envpool")
+# gymnasium ids envpool ships (plls_bench.envs.envpool_backend.ENVPOOL_TASKS; kept here so that
+# validating a config never imports the engine)
+ENVPOOL_GYM_IDS = ("CarRacing-v3", "MountainCarContinuous-v0")
 
 
 # --------------------------------------------------------------------------- environments
@@ -31,6 +35,15 @@ class EnvConfig(Validated):
     data_train_fraction: float = MISSING
     data_policy: str = "uniform"
     data_policy_correlation: float = 0.95
+    backend: str = "gymnasium"
+    backend_threads: int = 0
+
+    def validate_backend(self) -> None:
+        check_choice(self.backend, ENV_BACKENDS, "env.backend")
+        check(self.backend != "envpool" or self.gym_id in ENVPOOL_GYM_IDS, "env.backend",
+              f"envpool has no task {self.gym_id!r} (env.name={self.name}); it ships "
+              f"{', '.join(ENVPOOL_GYM_IDS)}: use env.backend=gymnasium")
+        check_nonnegative(self.backend_threads, "env.backend_threads")
 
     def validate(self) -> None:
         check_choice(self.name, ENV_NAMES, "env.name")
@@ -41,6 +54,7 @@ class EnvConfig(Validated):
         check_positive(self.data_num_envs, "env.data_num_envs")
         check_fraction(self.data_train_fraction, "env.data_train_fraction")
         check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
+        self.validate_backend()
         check(0 <= self.data_policy_correlation < 1, "env.data_policy_correlation",
               f"must be in [0, 1), got {self.data_policy_correlation!r}")
         if self.pixels or self.data_pixels:

@@ -15,7 +15,7 @@ from plls_bench.seeding import derive_seeds
 
 DATA_FORMAT = 1  # bump when the stored layout changes: old artifacts are then never reused
 # Env settings that do not change the collected data (parallelism) stay out of the key.
-_NOT_IN_KEY = ("data_num_envs", "data_async", "pixels")
+_NOT_IN_KEY = ("data_num_envs", "data_async", "pixels", "backend_threads")
 
 
 @dataclass
@@ -60,6 +60,8 @@ class RandomPolicyData:
 def dataset_key(cfg: Config) -> dict[str, Any]:
     """Everything that determines a dataset's content."""
     env = {k: v for k, v in asdict(cfg.env).items() if k not in _NOT_IN_KEY}
+    if env["backend"] == "gymnasium":  # the backend before the key existed: old artifacts keep their keys
+        del env["backend"]
     seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
     return {"format": DATA_FORMAT, "env": env, "episodes": cfg.budget.data_episodes,
             "max_steps": cfg.budget.data_steps_per_episode, "seed": seeds.data}

@@ -51,6 +51,10 @@ def action_stream(seed: int, steps: int, space: gym.spaces.Box, policy: str = "u
 
 
 def _vector_env(cfg: EnvConfig, n_envs: int) -> gym.vector.VectorEnv:
+    if cfg.backend == "envpool":
+        from plls_bench.envs.envpool_backend import ENVPOOL_TASKS, EnvpoolDataEnvs
+
+        return EnvpoolDataEnvs(ENVPOOL_TASKS[cfg.gym_id], n_envs, cfg.max_episode_steps, cfg.backend_threads)
     factory = partial(make_env, cfg, for_data=True)
     vector_cls = AsyncVectorEnv if cfg.data_async and n_envs > 1 else SyncVectorEnv
     return vector_cls([factory] * n_envs, autoreset_mode=AutoresetMode.DISABLED)

@@ -42,14 +42,22 @@ ENV_FACTORIES: dict[str, Callable[[EnvConfig, bool, str | None], gym.Env]] = {
 
 def make_env(cfg: EnvConfig, *, for_data: bool = False, render_mode: str | None = None) -> gym.Env:
     """One env of task ``cfg.name``. ``for_data``: the observation layout stored in random-policy
-    datasets (uint8 pixels; Cheetah's proprioceptive state unless ``env.data_pixels``)."""
+    datasets (uint8 pixels; Cheetah's proprioceptive state unless ``env.data_pixels``).
+    Always the gymnasium engine, whatever ``env.backend``: single envs serve spaces and
+    filmstrips (rendering), which envpool does not offer; vector envs follow the backend."""
     return ENV_FACTORIES[cfg.name](cfg, for_data, render_mode)
 
 
 def make_vec_env(cfg: EnvConfig, n_envs: int, seed: int, *, subproc: bool = False):
-    """A stable-baselines3 VecEnv of ``n_envs`` copies; env i's first reset uses ``seed + i``."""
+    """A stable-baselines3 VecEnv of ``n_envs`` copies; env i's first reset uses ``seed + i``.
+    ``env.backend=envpool``: one C++ pool (``subproc`` does not apply; it has threads of its own)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
+    if cfg.backend == "envpool":
+        from plls_bench.envs.envpool_backend import ENVPOOL_TASKS, EnvpoolVecEnv
+
+        return EnvpoolVecEnv(ENVPOOL_TASKS[cfg.gym_id], n_envs, cfg.max_episode_steps,
+                             cfg.backend_threads, seed=seed)
     factories = [lambda: make_env(cfg) for _ in range(n_envs)]
     venv = SubprocVecEnv(factories, start_method="forkserver") if subproc else DummyVecEnv(factories)
     venv.seed(seed)
