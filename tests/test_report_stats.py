@@ -10,8 +10,8 @@ import pytest
 import scipy.stats
 from rliable import metrics
 
-from plls_bench.report.stats import (_poi_batched, ahead_from, align, band, bootstrap_ci, convergence_index,
-                                     probability_of_improvement, smooth, summarise)
+from plls_bench.report.stats import (_mean_and_iqm, _poi, ahead_from, align, band, bootstrap_ci,
+                                     convergence_index, probability_of_improvement, smooth, summarise)
 from plls_bench.report.tables import Table, fmt, fmt_ci, tex
 
 
@@ -97,12 +97,23 @@ def test_probability_of_improvement_by_hand() -> None:
     assert ci[0] <= p <= ci[1]
 
 
-def test_batched_probability_of_improvement_equals_rliable() -> None:
+def test_probability_of_improvement_equals_rliable() -> None:
     rng = np.random.default_rng(3)
     for _ in range(20):
         x, y = rng.integers(0, 5, size=6).astype(float), rng.integers(0, 5, size=4).astype(float)
-        assert _poi_batched(x[None], y[None])[0] == pytest.approx(
+        assert _poi(x[:, None], y[:, None])[0] == pytest.approx(
             metrics.probability_of_improvement(x[:, None], y[:, None]))
+    p, ci = probability_of_improvement(x, y)
+    assert p == pytest.approx(metrics.probability_of_improvement(x[:, None], y[:, None]))
+    assert ci[0] <= p <= ci[1]
+
+
+def test_resampled_mean_and_iqm_equal_rliable() -> None:
+    rng = np.random.default_rng(4)
+    for n in (2, 3, 4, 5, 7, 8, 10):
+        column = rng.normal(size=(n, 1))
+        assert _mean_and_iqm(column) == pytest.approx(
+            [metrics.aggregate_mean(column), metrics.aggregate_iqm(column)])
 
 
 def test_align_matches_exact_x_and_interpolates_wall_time() -> None:

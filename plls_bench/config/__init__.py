@@ -93,6 +93,7 @@ def to_config(cfg: DictConfig | Config) -> Config:
     """Convert Hydra's DictConfig to the typed :class:`Config` (runs every ``__post_init__``)."""
     if isinstance(cfg, Config):
         return cfg
+    _check_repr_architectures(cfg)
     try:
         obj: Any = OmegaConf.to_object(cfg)
     except ConfigError:
@@ -101,6 +102,19 @@ def to_config(cfg: DictConfig | Config) -> Config:
         raise ConfigError(_omegaconf_message(err)) from err
     assert isinstance(obj, Config), f"expected Config, got {type(obj).__name__}"
     return obj
+
+
+def _check_repr_architectures(cfg: DictConfig) -> None:
+    """A VAE switched on for a task without an architecture file of its own leaves the schema's
+    required keys unset: name the choice and the file, not just the first unset key."""
+    for part in ("state", "action"):
+        node = OmegaConf.select(cfg, f"repr.{part}")
+        if not isinstance(node, DictConfig) or OmegaConf.is_missing(node, "kind") or node.kind == "none":
+            continue
+        unset = [key for key in node if OmegaConf.is_missing(node, key)]
+        env = OmegaConf.select(cfg, "env.name")
+        check(not unset, f"repr.{part}.kind", f"{node.kind} has no architecture for env {env} "
+              f"(conf/repr/{part}/per_env/{node.kind}_{env}.yaml); unset: {', '.join(map(str, unset))}")
 
 
 def _omegaconf_message(err: Exception) -> str:

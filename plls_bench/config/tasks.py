@@ -77,18 +77,19 @@ class StateReprConfig(Validated):
     The encoder is ``len(channels)`` stride-2 convolutions (no padding) with ReLU; the decoder maps
     z to the encoder's last feature map and mirrors it with stride-2 transposed convolutions whose
     kernels must bring the image back to its exact size (checked against ``env.image_size``).
+    Values live in ``conf/repr/state/`` (per task in ``per_env/``), each with its source.
     """
 
-    kind: str = "none"
-    latent_dim: int = 32
-    channels: list[int] = field(default_factory=lambda: [32, 64, 128, 256])
-    kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 4, 4])
-    deconv_kernel_sizes: list[int] = field(default_factory=lambda: [4, 4, 5, 4])
-    kl_weight: float = 1.0
-    likelihood_std: float = 0.7071067811865476
-    learning_rate: float = 1e-4
-    batch_size: int = 100
-    val_fraction: float = 0.1
+    kind: str = MISSING
+    latent_dim: int = MISSING
+    channels: list[int] = MISSING
+    kernel_sizes: list[int] = MISSING
+    deconv_kernel_sizes: list[int] = MISSING
+    kl_weight: float = MISSING
+    likelihood_std: float = MISSING
+    learning_rate: float = MISSING
+    batch_size: int = MISSING
+    val_fraction: float = MISSING
 
     def validate(self) -> None:
         check_choice(self.kind, REPR_KINDS, "repr.state.kind")
@@ -126,19 +127,20 @@ VAE_ACTIVATIONS = ("relu", "elu", "tanh")  # repr/models.py builds these
 
 @dataclass
 class ActionReprConfig(Validated):
-    """V_a: MLP VAE over actions; its frozen decoder maps the policy's latent e to an action."""
+    """V_a: MLP VAE over actions; its frozen decoder maps the policy's latent e to an action.
+    Values live in ``conf/repr/action/`` (per task in ``per_env/``), each with its source."""
 
-    kind: str = "none"
-    latent_dim: int = 3
-    encoder_hidden: list[int] = field(default_factory=lambda: [32, 16, 8])
-    decoder_hidden: list[int] = field(default_factory=lambda: [8, 16, 32])
-    activation: str = "relu"
-    kl_weight: float = 1.0
-    likelihood_std: float = 0.1
-    learning_rate: float = 1e-3
-    batch_size: int = 64
-    val_fraction: float = 0.1
-    latent_action_bound: float = 3.0
+    kind: str = MISSING
+    latent_dim: int = MISSING
+    encoder_hidden: list[int] = MISSING
+    decoder_hidden: list[int] = MISSING
+    activation: str = MISSING
+    kl_weight: float = MISSING
+    likelihood_std: float = MISSING
+    learning_rate: float = MISSING
+    batch_size: int = MISSING
+    val_fraction: float = MISSING
+    latent_action_bound: float = MISSING
 
     def validate(self) -> None:
         check_choice(self.kind, REPR_KINDS, "repr.action.kind")

@@ -17,6 +17,7 @@ from tqdm.auto import tqdm
 
 from plls_bench.config import EnvConfig
 from plls_bench.envs import make_env
+from plls_bench.progress import progress_bar
 from plls_bench.seeding import episode_seeds
 
 
@@ -118,7 +119,7 @@ def collect_random_policy(cfg: EnvConfig, episodes: int, max_steps: int, seed: i
     collected: list[_Episode] = []
     envs = _vector_env(cfg, n_envs)
     try:
-        with tqdm(total=episodes * max_steps, desc=f"random-policy data ({cfg.name})",
+        with progress_bar(total=episodes * max_steps, desc=f"random-policy data ({cfg.name})",
                   unit="step", disable=not progress) as bar:
             for start in range(0, episodes, n_envs):
                 collected += _run_wave(envs, seeds[start:start + n_envs], max_steps, bar,

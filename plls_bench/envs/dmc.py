@@ -6,6 +6,7 @@ as the DBC reference code does.
 """
 from __future__ import annotations
 
+import logging
 from collections import deque
 from typing import Any
 
@@ -13,6 +14,20 @@ import gymnasium as gym
 import numpy as np
 
 from plls_bench.envs.gl import ensure_mujoco_gl
+
+_SETTOTALMASS = "compiler attribute 'settotalmass' is deprecated"
+
+
+class _DropSettotalmass(logging.Filter):
+    """dm_control's cheetah.xml still sets ``<compiler settotalmass>``, which MuJoCo 3 deprecates;
+    dm_control forwards MuJoCo's warning to absl's logger once per env built (every env of a
+    vector env, every eval env), which buries the log. Only that message is dropped."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return _SETTOTALMASS not in record.getMessage()
+
+
+logging.getLogger("absl").addFilter(_DropSettotalmass())
 
 
 class DMCEnv(gym.Env):

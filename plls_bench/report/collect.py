@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import Iterable
 
 import numpy as np
-from tqdm import tqdm
 
+from plls_bench.progress import progress_bar
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.claims import read_claims
 from plls_bench.report.load import Runs
@@ -120,7 +120,7 @@ def render_all(runs_dir: str | Path, out_dir: str | Path, only: Iterable[str] | 
     check_inputs(runs_dir, out_dir, only, x_axis, paper_dir, records)
     opts = Options(x_axis, paper_dir)
     entries = [BY_ID[i] for i in only] if only else list(ENTRIES)
-    bar = tqdm(entries, disable=not progress, desc="report")
+    bar = progress_bar(entries, disable=not progress, desc="report")
     rendered = {entry.id: render_one(entry, runs_dir, out_dir, opts, records) for entry in bar}
     index = _merge_index(out_dir / "index.json", rendered)
     meta = {"runs": str(runs_dir), "records": None if records is None else str(records), "x_axis": x_axis,

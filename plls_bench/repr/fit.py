@@ -17,8 +17,8 @@ from typing import Iterator
 import numpy as np
 import torch
 from torch import Tensor
-from tqdm.auto import tqdm
 
+from plls_bench.progress import progress_bar
 from plls_bench.repr.models import VAE
 from plls_bench.runs import atomic_write_bytes
 
@@ -129,7 +129,7 @@ def fit(model: VAE, train: Split, val: Split, *, epochs: int, batch_size: int, l
     optimizer = torch.optim.Adam(model.parameters(), lr=learning_rate)
     start, history = _load_resume(resume, model, optimizer)
     steps_per_epoch = -(-len(train) // batch_size)
-    with tqdm(total=epochs * steps_per_epoch, initial=start * steps_per_epoch, desc=desc,
+    with progress_bar(total=epochs * steps_per_epoch, initial=start * steps_per_epoch, desc=desc,
               unit="batch", disable=not progress) as bar:
         for epoch in range(start + 1, epochs + 1):
             began = time.perf_counter()

@@ -16,7 +16,6 @@ import time
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
-from tqdm.auto import tqdm
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.config import Config
@@ -24,6 +23,7 @@ from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.evaluate import run_episodes
 from plls_bench.latent import wrap_latent
+from plls_bench.progress import progress_bar
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 from plls_bench.train.dbc_accounting import write_accounting
@@ -113,7 +113,7 @@ class DBCTrainer:
         obs = self.train_env.reset()
         self.replay.start_episode(obs[0])
         window, episode_return = Window(self.progress), 0.0
-        bar = tqdm(total=self.total_agent_steps, initial=self.progress.agent_steps, disable=not self.cfg.progress,
+        bar = progress_bar(total=self.total_agent_steps, initial=self.progress.agent_steps, disable=not self.cfg.progress,
                    desc=f"dbc {self.cfg.experiment} seed={self.cfg.seed}", unit="step")
         while True:
             if self.eval_due():

@@ -19,11 +19,11 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv
-from tqdm.auto import tqdm
 
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.evaluate import run_episodes
+from plls_bench.progress import progress_bar
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.runs import Run
 from plls_bench.seeding import Seeds, derive_seeds, sub_seed
@@ -112,7 +112,7 @@ def _train(cfg: Config, run: Run, plan: Plan, seeds: Seeds, train_env: VecEnv, e
         _log_eval(cfg, run, model, eval_env, seeds, position(0))
         checkpoint.save(run, model, position(0), normalize.state_json(train_env))
     stats = EpisodeStats()
-    with tqdm(total=plan.iterations, initial=progress.iteration, unit="iter", disable=not cfg.progress,
+    with progress_bar(total=plan.iterations, initial=progress.iteration, unit="iter", disable=not cfg.progress,
               desc=f"ppo {cfg.experiment} seed={cfg.seed}") as bar:
         for iteration in range(progress.iteration + 1, plan.iterations + 1):
             start = time.perf_counter()
