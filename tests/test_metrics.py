@@ -54,8 +54,10 @@ def test_an_eval_row_without_return_mean_reads_its_episodes_mean() -> None:
     row = EvalRow.from_record(old)
     assert row is not None and row.return_mean == 1.5 and row.episode_lengths == []
     assert EvalRow.from_record({"iteration": 3, "episode_returns": []}) is None
-    assert EvalRow.from_record({"iteration": 3, "return_mean": float("nan"), "episode_returns": [2.0]}).return_mean == 2.0
-    assert EvalRow.from_record({"return_mean": 1.0, "episode_returns": [1.0]}).x("iteration") is None
+    nan = EvalRow.from_record({"iteration": 3, "return_mean": float("nan"), "episode_returns": [2.0]})
+    assert nan is not None and nan.return_mean == 2.0
+    bare = EvalRow.from_record({"return_mean": 1.0, "episode_returns": [1.0]})
+    assert bare is not None and bare.x("iteration") is None
 
 
 def test_committed_records_round_trip_through_the_typed_rows() -> None:

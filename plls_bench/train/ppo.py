@@ -102,21 +102,10 @@ class PPOTrainer:
                                                             self.seeds.eval), ppo)
 
     def restore(self) -> Progress | None:
-        """The last checkpoint with its RNG states (training envs reseeded from its iteration),
-        or a new model."""
-        found = checkpoint.latest(self.run.path)
-        if found is None:
-            self.model = new_model(self.cfg, self.train_env)
+        self.model, saved, fresh = _start_or_resume(self.cfg, self.run, self.train_env, self.seeds.train)
+        if fresh:
             return None
-        zip_path, saved, rng = found
-        self.train_env.seed(sub_seed(self.seeds.train, saved.iteration))
-        saved_stats = checkpoint.normalization(self.run.path)
-        if saved_stats is not None:
-            normalize.restore(self.train_env, saved_stats)
-        self.model = PPO.load(zip_path, env=self.train_env, device=resolve_device(self.cfg.device))
-        checkpoint.set_rng_state(rng)
-        done = sum(self.plan.eval_at(i) for i in range(saved.iteration + 1))
-        return replace(saved, env_steps=saved.agent_steps * self.cfg.env.action_repeat, evaluations=done)
+        return replace(saved, evaluations=sum(self.plan.eval_at(i) for i in range(saved.iteration + 1)))
 
     def start(self, at: Progress, resumed: bool) -> None:
         self.model.set_logger(configure(str(self.run.path / "sb3" / f"start={at.iteration:07d}"),
@@ -176,6 +165,22 @@ class PPOTrainer:
 def run(cfg: Config, run: Run) -> None:
     """Train PPO for ``budget.train_env_steps``, evaluating every ``budget.eval_every_env_steps``."""
     loop.train(PPOTrainer(cfg, run), run, cfg)
+
+
+def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tuple[PPO, Progress, bool]:
+    """A new model (fresh: True), or the last checkpoint with its RNG states, ``venv`` reseeded
+    from the checkpoint's iteration and its VecNormalize statistics restored."""
+    found = checkpoint.latest(run.path)
+    if found is None:
+        return new_model(cfg, venv), Progress(), True
+    zip_path, saved, rng = found
+    venv.seed(sub_seed(train_seed, saved.iteration))
+    saved_stats = checkpoint.normalization(run.path)
+    if saved_stats is not None:
+        normalize.restore(venv, saved_stats)
+    model = PPO.load(zip_path, env=venv, device=resolve_device(cfg.device))
+    checkpoint.set_rng_state(rng)
+    return model, replace(saved, env_steps=saved.agent_steps * cfg.env.action_repeat), False
 
 
 def _dump_to_sb3(model: PPO, record: dict[str, Any], at: Progress) -> None:
