@@ -42,14 +42,14 @@ def measure(preset: str, budget: str, threads: int, steps: int, updates: int, ru
                    *overrides])
     torch.set_num_threads(threads)
     seed_everything(0)
-    trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset))  # no checkpoint there: fresh
+    trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset))
+    trainer.setup()
     try:
         obs = trainer.train_env.reset()
         trainer.replay.start_episode(obs[0])
-        trainer.progress.agent_steps = cfg.algo.dbc.init_steps  # act with the policy, as after init
         start = time.perf_counter()
-        for _ in range(steps):
-            obs, _, _ = trainer.step(obs, updates=False)
+        for i in range(steps):  # steps from init_steps on: the policy acts, as after init
+            obs, _, _ = trainer.step(obs, cfg.algo.dbc.init_steps + i, updates=False)
         acting = time.perf_counter() - start
         times, cpu = [], []
         for i in range(updates + 2):  # two warm-up updates

@@ -7,6 +7,7 @@ import math
 
 import pandas as pd
 
+from plls_bench.metrics import parallel_envs
 from plls_bench.report.base import Entry, Options, Output, Source
 from plls_bench.report.load import Experiment, Runs
 from plls_bench.report.returns import Convergence, convergence, load_curves
@@ -120,7 +121,7 @@ def _efficiency_row(runs: Runs, source: Source, ref: dict[str, str]) -> tuple[li
     params = parameter_counts(runs, exp) or {}
     conv = {axis: convergence(load_curves(runs, exp, source.label, axis))
             for axis in ("iteration", "env_steps", "env_steps_per_env")}
-    conv["sampled_frequency"] = _scaled(conv["env_steps_per_env"], float(exp.cfg("algo.ppo.n_envs", 1)))
+    conv["sampled_frequency"] = _scaled(conv["env_steps_per_env"], float(parallel_envs(exp.cfg)))
     n = max((c.n for c in conv.values() if c), default=0)
     cells = [source.label, fmt(params.get("total")), fmt(_paper_number(ref.get("total_parameters"))),
              fmt(params.get("trainable")), fmt(_paper_number(ref.get("trainable_parameters"))),

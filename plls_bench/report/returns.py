@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from plls_bench.metrics import EvalRow, iteration_label, parallel_envs
 from plls_bench.report.load import Experiment, Runs, Trial
 from plls_bench.report.stats import CURVE_RESAMPLES, align, bootstrap_ci, complete, convergence_index
 
@@ -36,11 +37,9 @@ class Curves:
 
 
 def x_label(exp: Experiment, x_axis: str) -> str:
-    """Axis label naming what one unit is for this experiment's algorithm."""
+    """Axis label naming what one unit is for this experiment's runner."""
     if x_axis == "iteration":
-        if exp.cfg("algo.name") == "ppo":
-            return f"PPO iteration ({exp.cfg('algo.ppo.n_envs')} envs x {exp.cfg('algo.ppo.n_steps')} steps)"
-        return "iteration (agent steps)" if exp.cfg("algo.name") == "dbc" else "iteration"
+        return iteration_label(exp.cfg)
     return {"env_steps": "environment steps (frames)", "wall_s": "wall-clock time (s)",
             "env_steps_per_env": "environment steps per parallel env"}[x_axis]
 
@@ -61,42 +60,22 @@ def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X
 def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str) -> tuple[np.ndarray, np.ndarray]:
     points: dict[float, float] = {}
     skipped = duplicated = 0
-    scale = _per_env_scale(trial) if x_axis == "env_steps_per_env" else 1.0
+    scale = float(parallel_envs(trial.cfg)) if x_axis == "env_steps_per_env" else 1.0
     source_key = "env_steps" if x_axis == "env_steps_per_env" else x_axis
-    for row in runs.records(exp, trial, "eval"):
-        x, y = _number(row.get(source_key)), _row_return(row)
-        if x is None or y is None:
+    for record in runs.records(exp, trial, "eval"):
+        row = EvalRow.from_record(record)
+        x = None if row is None else row.x(source_key)
+        if row is None or x is None or row.return_mean is None:
             skipped += 1
             continue
         duplicated += (x / scale) in points
-        points[x / scale] = y
+        points[x / scale] = row.return_mean
     if skipped:
         runs.gap(exp, trial, f"metrics/eval.jsonl: {skipped} row(s) without {source_key} or returns skipped")
     if duplicated:
         runs.gap(exp, trial, f"metrics/eval.jsonl: {duplicated} duplicate evaluation(s); last kept")
     xs = np.array(sorted(points))
     return xs, np.array([points[x] for x in xs])
-
-
-def _per_env_scale(trial: Trial) -> float:
-    return float(trial.cfg("algo.ppo.n_envs", 1)) if trial.cfg("algo.name") == "ppo" else 1.0
-
-
-def _row_return(row: dict) -> float | None:
-    """The evaluation's mean return: ``return_mean``, else the mean of ``episode_returns``."""
-    value = _number(row.get("return_mean"))
-    if value is not None:
-        return value
-    episodes = row.get("episode_returns")
-    if isinstance(episodes, list) and episodes and all(_number(v) is not None for v in episodes):
-        return float(np.mean(episodes))
-    return None
-
-
-def _number(value: object) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        return None
-    return float(value)
 
 
 # --------------------------------------------------------------------------- scores

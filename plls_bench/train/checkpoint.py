@@ -6,16 +6,16 @@ Layout under ``<run>/checkpoints/``::
     vecnormalize-<iteration>.json  VecNormalize statistics, only with algo.ppo.normalize_*
     latest.json           written last and atomically: the commit point of a checkpoint
 
-``latest.json`` holds the progress (iteration, agent steps, wall time) and the RNG states of
-python, numpy's global generator (SB3 shuffles minibatches with it) and torch (action sampling),
-and names the zip it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
+``latest.json`` holds the progress (iteration, agent steps, wall time: the fields of
+:class:`~plls_bench.train.loop.Progress` it has always held; the trainer derives the rest), the
+RNG states of python, numpy's global generator (SB3 shuffles minibatches with it) and torch
+(action sampling), and names the zip it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
 zip intact; older files are deleted only after the new ``latest.json`` is in place.
 """
 from __future__ import annotations
 
 import base64
 import random
-from dataclasses import asdict, dataclass
 from io import BytesIO
 from pathlib import Path
 from typing import Any
@@ -25,17 +25,11 @@ import torch
 from stable_baselines3 import PPO
 
 from plls_bench.runs import Run, atomic_write_bytes, read_json
+from plls_bench.train.loop import Progress
 
 LATEST = "latest.json"
 # Rollout leftovers are not needed: a resumed run resets its training envs (see ppo.py).
 _NOT_SAVED = ["_last_obs", "_last_episode_starts", "_last_original_obs"]
-
-
-@dataclass(frozen=True)
-class Progress:
-    iteration: int      # PPO iterations completed (rollout + update)
-    agent_steps: int    # env steps taken by the learner's vector env
-    wall_s: float       # wall-clock seconds of this run, summed over (re)starts
 
 
 def rng_state() -> dict[str, Any]:
@@ -67,8 +61,9 @@ def save(run: Run, model: PPO, progress: Progress, normalization: bytes | None =
     if normalization is not None:
         stats = f"vecnormalize-{progress.iteration:07d}.json"
         atomic_write_bytes(run.checkpoints_dir / stats, normalization)
+    saved = {"iteration": progress.iteration, "agent_steps": progress.agent_steps, "wall_s": progress.wall_s}
     run.write_json(f"checkpoints/{LATEST}", {"model": name, "normalization": stats,
-                                             "progress": asdict(progress), "rng": rng_state()})
+                                             "progress": saved, "rng": rng_state()})
     for old in [*run.checkpoints_dir.glob("ppo-*.zip"), *run.checkpoints_dir.glob("vecnormalize-*.json")]:
         if old.name not in (name, stats):
             old.unlink(missing_ok=True)

@@ -4,15 +4,18 @@ The agent acts in an SB3 ``VecEnv`` of one env; with ``repr/action=vae`` that en
 the latent-action wrapper, so PL-LS + DBC is this same code acting in V_a's latent space. The loop
 follows the reference's train.py: ``init_steps`` uniform random agent steps, then one update per
 agent step (``init_steps`` of them at once at the first learning step), the update before the
-env step. Every ``budget.eval_every_env_steps`` env steps (frames, counting action repeat) the
-deterministic policy is evaluated on ``budget.eval_episodes`` fresh episodes of a separately
-seeded env, then the run is checkpointed (see :mod:`plls_bench.train.dbc_state`).
+env step. :class:`DBCTrainer` runs in the training skeleton (:mod:`plls_bench.train.loop`); one
+iteration is one agent step. Every ``budget.eval_every_env_steps`` env steps (frames, counting
+action repeat) the deterministic policy is evaluated on ``budget.eval_episodes`` fresh episodes
+of a separately seeded env, then the run is checkpointed (see :mod:`plls_bench.train.dbc_state`).
 """
 from __future__ import annotations
 
 import logging
 import math
 import time
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
@@ -23,11 +26,13 @@ from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.evaluate import run_episodes
 from plls_bench.latent import wrap_latent
-from plls_bench.progress import progress_bar
+from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
+from plls_bench.train import loop
 from plls_bench.train.dbc_accounting import write_accounting
-from plls_bench.train.dbc_state import Progress, load_checkpoint, save_checkpoint
+from plls_bench.train.dbc_state import load_checkpoint, save_checkpoint
+from plls_bench.train.loop import Progress
 
 log = logging.getLogger(__name__)
 
@@ -52,12 +57,12 @@ def _stream_seed(seed: int, index: int) -> int:
 class Window:
     """Running means of update metrics and rates between two ``train.jsonl`` records."""
 
-    def __init__(self, progress: Progress) -> None:
+    def __init__(self, at: Progress) -> None:
         self.sums: dict[str, float] = {}
         self.counts: dict[str, int] = {}
         self.returns: list[float] = []
         self.updates = 0
-        self.agent_steps0, self.env_steps0, self.t0 = progress.agent_steps, progress.env_steps, time.perf_counter()
+        self.agent_steps0, self.env_steps0, self.t0 = at.agent_steps, at.env_steps, time.perf_counter()
 
     def add(self, metrics: dict[str, float]) -> None:
         self.updates += 1
@@ -65,77 +70,74 @@ class Window:
             self.sums[key] = self.sums.get(key, 0.0) + value
             self.counts[key] = self.counts.get(key, 0) + 1
 
-    def record(self, progress: Progress) -> dict[str, float | list[float]]:
+    def record(self, at: Progress) -> dict[str, float | list[float]]:
         seconds = max(time.perf_counter() - self.t0, 1e-9)
         return {**{k: self.sums[k] / self.counts[k] for k in self.sums}, "train/episode_returns": self.returns,
                 "perf/updates_per_s": self.updates / seconds,
-                "perf/env_steps_per_s": (progress.env_steps - self.env_steps0) / seconds}
+                "perf/env_steps_per_s": (at.env_steps - self.env_steps0) / seconds}
 
 
 class DBCTrainer:
-    """One DBC run: envs, agent, replay and the loop; resumes from the run's checkpoint."""
+    """DBC in the training skeleton (:mod:`plls_bench.train.loop`). One iteration is one agent
+    step (``env.action_repeat`` frames) with its updates; a ``train.jsonl`` row per training
+    episode and one before each evaluation; a checkpoint after each evaluation."""
+
+    unit = "step"
 
     def __init__(self, cfg: Config, run: Run) -> None:
+        assert cfg.algo.dbc is not None
         self.cfg, self.run, self.dbc = cfg, run, cfg.algo.dbc
         self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
+        self.iterations = math.ceil(cfg.budget.train_env_steps / cfg.env.action_repeat)
+        budget = cfg.budget
+        self.eval_points = [*range(0, budget.train_env_steps, budget.eval_every_env_steps), budget.train_env_steps]
+
+    def setup(self) -> None:
+        cfg = self.cfg
         self.device = resolve_device(cfg.device)
         self.train_env, self.eval_env = make_envs(cfg, self.seeds.train)
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))
-        repeat = cfg.env.action_repeat
-        self.total_agent_steps = math.ceil(cfg.budget.train_env_steps / repeat)
         self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device)
         self.replay = FrameReplay(obs_shape, cfg.env.frame_stack if cfg.env.pixels else 1, self.action_dim,
-                                  capacity=min(self.dbc.replay_capacity, self.total_agent_steps),
-                                  episode_length=math.ceil(cfg.env.max_episode_steps / repeat))
-        budget = cfg.budget
-        self.eval_points = [*range(0, budget.train_env_steps, budget.eval_every_env_steps), budget.train_env_steps]
+                                  capacity=min(self.dbc.replay_capacity, self.iterations),
+                                  episode_length=math.ceil(cfg.env.max_episode_steps / cfg.env.action_repeat))
         self.rng = np.random.default_rng(self.seeds.train)
-        self.progress = load_checkpoint(run, self.agent, self.replay, self.rng) or Progress()
+
+    def restore(self) -> Progress | None:
+        saved = load_checkpoint(self.run, self.agent, self.replay, self.rng)
         log.info("replay: %d slots, %.1f MiB (%d bytes/transition; reference layout %d bytes/transition)",
                  self.replay.slots, self.replay.nbytes / 2**20, self.replay.bytes_per_slot(),
                  self.replay.reference_bytes_per_transition())
+        return saved
 
-    def eval_due(self) -> bool:
-        """Evaluations happen at 0, every, 2 * every, ... env steps and at the end of training."""
-        n = self.progress.evaluations
-        return n < len(self.eval_points) and self.progress.env_steps >= self.eval_points[n]
-
-    def train(self) -> None:
-        done_before = self.progress.env_steps
-        keep = (lambda r: r.get("env_steps", -1) <= done_before) if self.progress.evaluations else (lambda r: False)
-        for stream in ("eval", "train"):
-            self.run.truncate_metrics(stream, keep)
+    def start(self, at: Progress, resumed: bool) -> None:
         write_accounting(self.run, self.agent, self.train_env)
-        self.t_start, self.wall0 = time.perf_counter(), self.progress.wall_s
-        if self.progress.evaluations:  # resumed: the interrupted episode is not continued
-            self.train_env.seed(_stream_seed(self.seeds.train, self.progress.agent_steps))
-        obs = self.train_env.reset()
-        self.replay.start_episode(obs[0])
-        window, episode_return = Window(self.progress), 0.0
-        bar = progress_bar(total=self.total_agent_steps, initial=self.progress.agent_steps, disable=not self.cfg.progress,
-                   desc=f"dbc {self.cfg.experiment} seed={self.cfg.seed}", unit="step")
-        while True:
-            if self.eval_due():
-                self._log_train(window)
-                self._evaluate_and_checkpoint()
-                window = Window(self.progress)  # rates exclude evaluation time
-            if self.progress.agent_steps >= self.total_agent_steps:
-                break
-            obs, reward, finished = self.step(obs, window)
-            episode_return += reward
-            if finished:  # one train.jsonl record per training episode (and one before each eval)
-                window.returns.append(episode_return)
-                self._log_train(window)
-                window, episode_return = Window(self.progress), 0.0
-            bar.update(1)
-        bar.close()
+        if resumed:  # the interrupted episode is not continued
+            self.train_env.seed(_stream_seed(self.seeds.train, at.agent_steps))
+        self.obs = self.train_env.reset()
+        self.replay.start_episode(self.obs[0])
+        self.window, self.episode_return = Window(at), 0.0
 
-    def step(self, obs: np.ndarray, window: Window | None = None,
+    def train_iteration(self, at: Progress) -> tuple[Progress, dict[str, Any] | None]:
+        """One agent step; the train row's metrics at the end of an episode or before an evaluation."""
+        self.obs, reward, finished = self.step(self.obs, at.agent_steps, self.window)
+        at = replace(at, iteration=at.iteration + 1, agent_steps=at.agent_steps + 1,
+                     env_steps=at.env_steps + self.cfg.env.action_repeat, episodes=at.episodes + finished)
+        self.episode_return += reward
+        if finished:
+            self.window.returns.append(self.episode_return)
+            self.episode_return = 0.0
+        if not (finished or self.eval_due(at)):
+            return at, None
+        metrics, self.window = self.window.record(at), Window(at)
+        return at, metrics
+
+    def step(self, obs: np.ndarray, step: int, window: Window | None = None,
              updates: bool = True) -> tuple[np.ndarray, float, bool]:
-        """One agent step from observation ``(1, *O)``: act, update (unless ``updates`` is False),
-        step the env, store the transition. Returns the next observation, reward and done."""
-        step, init = self.progress.agent_steps, self.dbc.init_steps
+        """Agent step number ``step`` from observation ``(1, *O)``: act, update (unless ``updates``
+        is False), step the env, store the transition. Returns the next observation, reward, done."""
+        init = self.dbc.init_steps
         if step < init:
             action = self.rng.uniform(-1.0, 1.0, size=(1, self.action_dim)).astype(np.float32)
         else:
@@ -152,45 +154,40 @@ class DBCTrainer:
         self.replay.add(action[0], float(reward[0]), terminated, final)
         if done[0]:
             self.replay.start_episode(next_obs[0])
-            self.progress.episodes += 1
-        self.progress.agent_steps += 1
-        self.progress.env_steps += self.cfg.env.action_repeat
         return next_obs, float(reward[0]), bool(done[0])
 
-    def _wall(self) -> float:
-        return self.wall0 + time.perf_counter() - self.t_start
+    def eval_due(self, at: Progress) -> bool:
+        """Evaluations happen at 0, every, 2 * every, ... env steps and at the end of training."""
+        n = at.evaluations
+        return n < len(self.eval_points) and at.env_steps >= self.eval_points[n]
 
-    def _counters(self) -> dict[str, float]:
-        p = self.progress
-        return {"env_steps": p.env_steps, "iteration": p.agent_steps, "agent_steps": p.agent_steps,
-                "wall_s": round(self._wall(), 3)}
-
-    def _log_train(self, window: Window) -> None:
-        if self.progress.agent_steps > window.agent_steps0:
-            self.run.log("train", {**self._counters(), **window.record(self.progress)})
-
-    def _evaluate_and_checkpoint(self) -> None:
-        p = self.progress
+    def evaluate(self, at: Progress) -> EvalRow:
+        """The deterministic policy on fresh episodes of the evaluation env, seeded per evaluation."""
         def act(obs: np.ndarray) -> np.ndarray:
             return to_env_action(self.agent.act(obs, deterministic=True), self.eval_env.action_space)
 
         budget = self.cfg.budget
         episodes = run_episodes(self.eval_env, act, budget.eval_episodes,
-                                _stream_seed(self.seeds.eval, p.evaluations), budget.eval_max_steps)
-        returns, lengths = episodes.returns, episodes.lengths
-        self.run.log("eval", {**self._counters(), "episode_returns": returns, "episode_lengths": lengths,
-                              "return_mean": float(np.mean(returns))})
-        log.info("eval at %d env steps: return %.1f", p.env_steps, float(np.mean(returns)))
-        p.evaluations += 1
-        p.wall_s = self._wall()
-        save_checkpoint(self.run, self.agent, self.replay, p, self.rng)
+                                _stream_seed(self.seeds.eval, at.evaluations), budget.eval_max_steps)
+        mean = float(np.mean(episodes.returns))
+        log.info("eval at %d env steps: return %.1f", at.env_steps, mean)
+        return EvalRow.at(at, episode_returns=episodes.returns, episode_lengths=episodes.lengths, return_mean=mean)
+
+    def report(self, at: Progress, row: TrainRow | None, evaluation: EvalRow | None) -> None:
+        """DBC logs only to ``metrics/``."""
+
+    def checkpoint_due(self, at: Progress, evaluated: bool) -> bool:
+        return evaluated
+
+    def checkpoint(self, at: Progress) -> None:
+        save_checkpoint(self.run, self.agent, self.replay, at, self.rng)
+        self.window = Window(at)  # rates exclude evaluation and checkpoint time
+
+    def close(self) -> None:
+        self.train_env.close()
+        self.eval_env.close()
 
 
 def run(cfg: Config, run: Run) -> None:
     """Runner ``dbc`` (see module docstring)."""
-    trainer = DBCTrainer(cfg, run)
-    try:
-        trainer.train()
-    finally:
-        trainer.train_env.close()
-        trainer.eval_env.close()
+    loop.train(DBCTrainer(cfg, run), run, cfg)

@@ -1,7 +1,8 @@
 """What a DBC run needs to resume after a kill: agent, optimisers, RNGs, counters and the replay.
 
-A checkpoint is ``checkpoints/dbc.pt`` (agent, optimisers, RNG states, :class:`Progress`; a
-readable copy of the progress in ``checkpoints/progress.json``) plus
+A checkpoint is ``checkpoints/dbc.pt`` (agent, optimisers, RNG states, the
+:class:`~plls_bench.train.loop.Progress` and ``replay_written``; a readable copy of the progress
+in ``checkpoints/progress.json``) plus
 ``checkpoints/replay/chunk_<start>_<end>.npz``: each checkpoint appends only the replay slots
 written since the previous one, so saving stays cheap as the buffer grows. Chunks are written
 (atomically) before ``dbc.pt``; on resume, chunks past the checkpoint's slot count (from a
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 import io
 import re
-from dataclasses import asdict, dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -26,23 +27,12 @@ from plls_bench.composition import config_from_dict
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.runs import Run, read_json
+from plls_bench.train.loop import Progress
 
 CHECKPOINT = "checkpoints/dbc.pt"
 PROGRESS = "checkpoints/progress.json"
 REPLAY_DIR = "checkpoints/replay"
 _CHUNK = re.compile(r"chunk_(\d+)_(\d+)\.npz")
-
-
-@dataclass
-class Progress:
-    """Counters of a run; ``wall_s`` accumulates over restarts."""
-
-    agent_steps: int = 0
-    env_steps: int = 0
-    episodes: int = 0
-    evaluations: int = 0
-    wall_s: float = 0.0
-    replay_written: int = 0  # replay slots covered by saved chunks
 
 
 def _chunks(run: Run) -> list[tuple[int, int, Path]]:
@@ -54,19 +44,29 @@ def _chunks(run: Run) -> list[tuple[int, int, Path]]:
     return sorted(found)
 
 
+def _saved(progress: Progress, replay_written: int) -> dict[str, Any]:
+    """The progress as ``dbc.pt`` and ``progress.json`` have always held it (iteration is the
+    agent step), with the replay slots covered by saved chunks."""
+    return {"agent_steps": progress.agent_steps, "env_steps": progress.env_steps, "episodes": progress.episodes,
+            "evaluations": progress.evaluations, "wall_s": progress.wall_s, "replay_written": replay_written}
+
+
 def save_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay, progress: Progress,
                     rng: np.random.Generator) -> None:
-    """Append the new replay slots as a chunk, then write ``dbc.pt`` atomically."""
-    start, end = max(progress.replay_written, replay.oldest), replay.n_written
+    """Append the replay slots written since the last chunk as a new chunk, then write ``dbc.pt``
+    atomically. The newest chunk on disk ends where the last checkpoint's slots ended: older
+    chunks are dropped only once the ring buffer has overwritten them, never the newest."""
+    saved_end = max((end for _, end, _ in _chunks(run)), default=0)
+    start, end = max(saved_end, replay.oldest), replay.n_written
     if end > start:
         save_npz(run.path / REPLAY_DIR / f"chunk_{start:012d}_{end:012d}.npz", replay.export(start, end))
-    progress.replay_written = end
-    state = {"agent": agent.state_dict(), "progress": asdict(progress),
+    saved = _saved(progress, end)
+    state = {"agent": agent.state_dict(), "progress": saved,
              "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()}
     buffer = io.BytesIO()
     torch.save(state, buffer)
     run.write_bytes(CHECKPOINT, buffer.getvalue())
-    run.write_json(PROGRESS, asdict(progress))  # a readable copy, written after the checkpoint
+    run.write_json(PROGRESS, saved)  # a readable copy, written after the checkpoint
     for _, chunk_end, path in _chunks(run):  # slots the ring buffer no longer holds
         if chunk_end <= replay.oldest:
             path.unlink(missing_ok=True)
@@ -82,18 +82,20 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
             chunk.unlink()
         return None
     state: dict[str, Any] = torch.load(path, map_location=agent.device, weights_only=True)
-    progress = Progress(**state["progress"])
+    saved = state["progress"]
+    progress = Progress(iteration=saved["agent_steps"], agent_steps=saved["agent_steps"], wall_s=saved["wall_s"],
+                        env_steps=saved["env_steps"], evaluations=saved["evaluations"], episodes=saved["episodes"])
     agent.load_state_dict(state["agent"])
     rng.bit_generator.state = state["rng"]
     torch.set_rng_state(state["torch_rng"].cpu())  # map_location moved it to the agent's device
     for start, end, chunk in _chunks(run):
-        if end > progress.replay_written:  # written by a checkpoint that never completed
+        if end > saved["replay_written"]:  # written by a checkpoint that never completed
             chunk.unlink()
         else:
             replay.load(start, load_npz(chunk))
-    if replay.n_written != progress.replay_written:
+    if replay.n_written != saved["replay_written"]:
         raise RuntimeError(f"replay chunks in {run.path / REPLAY_DIR} hold {replay.n_written} slots, "
-                           f"the checkpoint expects {progress.replay_written}")
+                           f"the checkpoint expects {saved['replay_written']}")
     return progress
 
 

@@ -1,17 +1,16 @@
 """Runner ``ppo``: stable-baselines3 PPO, plain or through the frozen V_s / V_a (PL-LS).
 
-One iteration is one PPO rollout of ``n_envs x n_steps`` steps and its update. The loop is
-``learn`` one iteration -> ``metrics/train.jsonl`` -> evaluate when due -> ``metrics/eval.jsonl`` ->
-checkpoint. A checkpoint at iteration k covers every metric row with ``iteration <= k``; a
-restarted run drops rows newer than its checkpoint and redoes those iterations, so the eval
-history ends complete and without duplicates. Training envs are reset on a resume (with a seed
-derived from the checkpoint's iteration): episodes in flight at the kill are started again.
+:class:`PPOTrainer` runs in the training skeleton (:mod:`plls_bench.train.loop`). One iteration
+is one PPO rollout of ``n_envs x n_steps`` steps and its update, followed by its
+``metrics/train.jsonl`` row, an evaluation when due (``metrics/eval.jsonl``) and a checkpoint.
+Training envs are reset on a resume (with a seed derived from the checkpoint's iteration):
+episodes in flight at the kill are started again.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import torch
@@ -21,15 +20,15 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv
 
 from plls_bench.config import Config
+from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.devices import resolve_device
 from plls_bench.evaluate import run_episodes
-from plls_bench.progress import progress_bar
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.runs import Run
-from plls_bench.seeding import Seeds, derive_seeds, sub_seed
-from plls_bench.train import checkpoint, normalize
+from plls_bench.seeding import derive_seeds, sub_seed
+from plls_bench.train import checkpoint, loop, normalize
 from plls_bench.train.agent import accounting, build_vec_env, new_model, sb3_metrics
-from plls_bench.train.checkpoint import Progress
+from plls_bench.train.loop import Progress
 
 _EVAL_SAMPLING = 1  # sub-stream of the eval seed for stochastic test actions
 
@@ -84,98 +83,109 @@ class EpisodeStats(BaseCallback):
                 "rollout/ep_length_mean": sum(self.lengths) / len(self.lengths)}
 
 
+class PPOTrainer:
+    """PPO in the training skeleton (:mod:`plls_bench.train.loop`). One iteration is one PPO
+    rollout of ``n_envs x n_steps`` vector-env steps and its update; a checkpoint after each."""
+
+    unit = "iter"
+
+    def __init__(self, cfg: Config, run: Run) -> None:
+        assert cfg.algo.ppo is not None
+        self.cfg, self.run, self.ppo, self.plan = cfg, run, cfg.algo.ppo, Plan.of(cfg)
+        self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
+        self.iterations = self.plan.iterations
+
+    def setup(self) -> None:
+        cfg, ppo = self.cfg, self.ppo
+        self.train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, self.seeds.train), ppo)
+        self.eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes),
+                                                            self.seeds.eval), ppo)
+
+    def restore(self) -> Progress | None:
+        self.model, saved, fresh = _start_or_resume(self.cfg, self.run, self.train_env, self.seeds.train)
+        if fresh:
+            return None
+        return replace(saved, evaluations=sum(self.plan.eval_at(i) for i in range(saved.iteration + 1)))
+
+    def start(self, at: Progress, resumed: bool) -> None:
+        self.model.set_logger(configure(str(self.run.path / "sb3" / f"start={at.iteration:07d}"),
+                                        ["csv", "tensorboard"]))
+        _write_accounting(self.run, self.model, self.train_env)
+        self.stats = EpisodeStats()
+
+    def train_iteration(self, at: Progress) -> tuple[Progress, dict[str, Any]]:
+        start = time.perf_counter()
+        self.model.learn(self.plan.env_steps_per_iteration // self.cfg.env.action_repeat, callback=self.stats,
+                         log_interval=None, reset_num_timesteps=False)
+        steps = int(self.model.num_timesteps)
+        done = replace(at, iteration=at.iteration + 1, agent_steps=steps,
+                       env_steps=steps * self.cfg.env.action_repeat)
+        seconds = time.perf_counter() - start
+        return done, {**sb3_metrics(self.model.logger.name_to_value), **self.stats.summary(),
+                      "perf/sps": self.plan.env_steps_per_iteration / seconds,
+                      "perf/rollout_s": self.stats.rollout_end - start,
+                      "perf/update_s": time.perf_counter() - self.stats.rollout_end}
+
+    def eval_due(self, at: Progress) -> bool:
+        return self.plan.eval_at(at.iteration)
+
+    def evaluate(self, at: Progress) -> EvalRow:
+        """Deterministic and stochastic test episodes (the same seeds at every evaluation); the
+        stochastic ones sample from their own torch stream, so evaluating never shifts training's.
+        With VecNormalize, the test env gets the training statistics frozen at this point."""
+        model, venv, seeds = self.model, self.eval_env, self.seeds
+        n, cap = self.cfg.budget.eval_episodes, self.cfg.budget.eval_max_steps
+        normalize.sync(model.get_env(), venv)
+        greedy = run_episodes(venv, lambda obs: model.predict(obs, deterministic=True)[0], n, seeds.eval, cap)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(sub_seed(seeds.eval, _EVAL_SAMPLING, at.iteration))
+            sampled = run_episodes(venv, lambda obs: model.predict(obs, deterministic=False)[0], n, seeds.eval, cap)
+        return EvalRow.at(at, episode_returns=greedy.returns, episode_lengths=greedy.lengths,
+                          return_mean=_mean(greedy.returns), episode_returns_stochastic=sampled.returns,
+                          episode_lengths_stochastic=sampled.lengths, return_mean_stochastic=_mean(sampled.returns))
+
+    def report(self, at: Progress, row: TrainRow | None, evaluation: EvalRow | None) -> None:
+        """SB3's logger gets each iteration's numbers (none for the evaluation before training)."""
+        if row is not None:
+            extra = {} if evaluation is None else {"eval/return_mean": evaluation.return_mean,
+                                                   "eval/return_mean_stochastic": evaluation.return_mean_stochastic}
+            _dump_to_sb3(self.model, {**row.metrics, **extra}, at)
+
+    def checkpoint_due(self, at: Progress, evaluated: bool) -> bool:
+        return True
+
+    def checkpoint(self, at: Progress) -> None:
+        checkpoint.save(self.run, self.model, at, normalize.state_json(self.train_env))
+
+    def close(self) -> None:
+        self.train_env.close()
+        self.eval_env.close()
+
+
 def run(cfg: Config, run: Run) -> None:
     """Train PPO for ``budget.train_env_steps``, evaluating every ``budget.eval_every_env_steps``."""
-    assert cfg.algo.ppo is not None
-    ppo = cfg.algo.ppo
-    seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
-    train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, seeds.train), ppo)
-    eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes), seeds.eval), ppo)
-    try:
-        _train(cfg, run, Plan.of(cfg), seeds, train_env, eval_env)
-    finally:
-        train_env.close()
-        eval_env.close()
-
-
-def _train(cfg: Config, run: Run, plan: Plan, seeds: Seeds, train_env: VecEnv, eval_env: VecEnv) -> None:
-    model, progress, fresh = _start_or_resume(cfg, run, train_env, seeds.train)
-    model.set_logger(configure(str(run.path / "sb3" / f"start={progress.iteration:07d}"), ["csv", "tensorboard"]))
-    _write_accounting(run, model, train_env)
-    started = time.perf_counter()
-
-    def position(iteration: int) -> Progress:
-        wall = progress.wall_s + time.perf_counter() - started
-        return Progress(iteration, int(model.num_timesteps), round(wall, 3))
-
-    if fresh:
-        _log_eval(cfg, run, model, eval_env, seeds, position(0))
-        checkpoint.save(run, model, position(0), normalize.state_json(train_env))
-    stats = EpisodeStats()
-    with progress_bar(total=plan.iterations, initial=progress.iteration, unit="iter", disable=not cfg.progress,
-              desc=f"ppo {cfg.experiment} seed={cfg.seed}") as bar:
-        for iteration in range(progress.iteration + 1, plan.iterations + 1):
-            start = time.perf_counter()
-            model.learn(plan.env_steps_per_iteration // cfg.env.action_repeat, callback=stats,
-                        log_interval=None, reset_num_timesteps=False)
-            done = position(iteration)
-            seconds = time.perf_counter() - start
-            record = {**_steps(cfg, done), **sb3_metrics(model.logger.name_to_value), **stats.summary(),
-                      "perf/sps": plan.env_steps_per_iteration / seconds,
-                      "perf/rollout_s": stats.rollout_end - start,
-                      "perf/update_s": time.perf_counter() - stats.rollout_end}
-            run.log("train", record)
-            extra = _log_eval(cfg, run, model, eval_env, seeds, done) if plan.eval_at(iteration) else {}
-            _dump_to_sb3(model, {**record, **extra}, done)
-            checkpoint.save(run, model, position(iteration), normalize.state_json(train_env))
-            bar.set_postfix({k.split("/")[1]: round(v, 2) for k, v in extra.items()}, refresh=False)
-            bar.update(1)
+    loop.train(PPOTrainer(cfg, run), run, cfg)
 
 
 def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tuple[PPO, Progress, bool]:
-    """A new model (and empty metric streams), or the last checkpoint with its RNG states."""
+    """A new model (fresh: True), or the last checkpoint with its RNG states, ``venv`` reseeded
+    from the checkpoint's iteration and its VecNormalize statistics restored."""
     found = checkpoint.latest(run.path)
     if found is None:
-        for stream in ("train", "eval"):
-            run.truncate_metrics(stream, lambda _: False)
-        return new_model(cfg, venv), Progress(0, 0, 0.0), True
-    zip_path, progress, rng = found
-    for stream in ("train", "eval"):
-        run.truncate_metrics(stream, lambda r: r["iteration"] <= progress.iteration)
-    venv.seed(sub_seed(train_seed, progress.iteration))
+        return new_model(cfg, venv), Progress(), True
+    zip_path, saved, rng = found
+    venv.seed(sub_seed(train_seed, saved.iteration))
     saved_stats = checkpoint.normalization(run.path)
     if saved_stats is not None:
         normalize.restore(venv, saved_stats)
     model = PPO.load(zip_path, env=venv, device=resolve_device(cfg.device))
     checkpoint.set_rng_state(rng)
-    return model, progress, False
-
-
-def _steps(cfg: Config, at: Progress) -> dict[str, Any]:
-    return {"iteration": at.iteration, "agent_steps": at.agent_steps,
-            "env_steps": at.agent_steps * cfg.env.action_repeat, "wall_s": at.wall_s}
-
-
-def _log_eval(cfg: Config, run: Run, model: PPO, venv: VecEnv, seeds: Seeds, at: Progress) -> dict[str, float]:
-    """Deterministic and stochastic test episodes (the same seeds at every evaluation); the
-    stochastic ones sample from their own torch stream, so evaluating never shifts training's.
-    With VecNormalize, the test env gets the training statistics frozen at this point."""
-    n, cap = cfg.budget.eval_episodes, cfg.budget.eval_max_steps
-    normalize.sync(model.get_env(), venv)
-    greedy = run_episodes(venv, lambda obs: model.predict(obs, deterministic=True)[0], n, seeds.eval, cap)
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(sub_seed(seeds.eval, _EVAL_SAMPLING, at.iteration))
-        sampled = run_episodes(venv, lambda obs: model.predict(obs, deterministic=False)[0], n, seeds.eval, cap)
-    mean, mean_sampled = _mean(greedy.returns), _mean(sampled.returns)
-    run.log("eval", {**_steps(cfg, at), "episode_returns": greedy.returns, "return_mean": mean,
-                     "episode_lengths": greedy.lengths, "episode_returns_stochastic": sampled.returns,
-                     "return_mean_stochastic": mean_sampled, "episode_lengths_stochastic": sampled.lengths})
-    return {"eval/return_mean": mean, "eval/return_mean_stochastic": mean_sampled}
+    return model, replace(saved, env_steps=saved.agent_steps * cfg.env.action_repeat), False
 
 
 def _dump_to_sb3(model: PPO, record: dict[str, Any], at: Progress) -> None:
-    """SB3's logger (CSV + TensorBoard under ``sb3/``) gets the same numbers as ``train.jsonl``;
-    SB3's own ``train/*`` values are already recorded by its update."""
+    """SB3's logger (CSV + TensorBoard under ``sb3/``) gets the same numbers as ``train.jsonl``
+    and the evaluation's means; SB3's own ``train/*`` values are already recorded by its update."""
     for key, value in record.items():
         if "/" in key and not key.startswith(("train/", "loss/")):
             model.logger.record(key, value)

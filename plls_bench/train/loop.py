@@ -1,0 +1,126 @@
+"""The training skeleton every trainer runs in (PPO: :mod:`plls_bench.train.ppo`, DBC:
+:mod:`plls_bench.train.dbc`)::
+
+    setup -> restore -> drop metric rows newer than the checkpoint -> start
+    [fresh: evaluate at 0 when due, checkpoint when due]
+    while iteration < iterations:
+        train_iteration -> train row -> evaluate when due -> eval row -> report -> checkpoint when due
+
+A trainer builds its env, agent, buffer and logger once in ``setup`` and supplies the steps; this
+module owns their order, resume, the wall clock, the metric rows (:mod:`plls_bench.metrics`) and
+the progress bar. A checkpoint at iteration k covers every metric row with ``iteration <= k``: a
+restarted run drops the newer rows and redoes those iterations, so the history ends complete and
+without duplicates.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from typing import Any, Protocol
+
+from tqdm import tqdm  # the type of the bar progress_bar returns
+
+from plls_bench.config import Config
+from plls_bench.metrics import EvalRow, TrainRow
+from plls_bench.progress import progress_bar
+from plls_bench.runs import Run
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Where a run stands. ``iteration`` counts the runner's unit (its trainer's docstring; README
+    "What each runner writes"): PPO one rollout of ``n_envs x n_steps`` and its update, DBC one
+    agent step. ``agent_steps`` counts steps of the learner's env (each env of a vector env),
+    ``env_steps`` frames (agent steps x action repeat); ``wall_s`` sums over restarts;
+    ``evaluations`` is the number done so far; ``episodes`` the training episodes finished, where
+    the runner keeps count (DBC; PPO reports them per iteration in ``rollout/episodes``)."""
+
+    iteration: int = 0
+    agent_steps: int = 0
+    wall_s: float = 0.0  # third, so a checkpoint's Progress(iteration, agent_steps, wall_s) reads
+    env_steps: int = 0
+    evaluations: int = 0
+    episodes: int = 0
+
+
+class Trainer(Protocol):
+    """What a runner supplies to :func:`train`."""
+
+    unit: str        # the progress bar's name for one iteration
+    iterations: int  # iterations in the whole run
+
+    def setup(self) -> None:
+        """Build envs, agent, buffer and logger (once)."""
+
+    def restore(self) -> Progress | None:
+        """Load the last checkpoint (agent, buffer, RNG states); None for a fresh run."""
+
+    def start(self, at: Progress, resumed: bool) -> None:
+        """Ready to train from ``at``: accounting files, logger, env resets."""
+
+    def train_iteration(self, at: Progress) -> tuple[Progress, dict[str, Any] | None]:
+        """One iteration; the new position and the metrics of a train row, if one is due."""
+
+    def eval_due(self, at: Progress) -> bool: ...
+
+    def evaluate(self, at: Progress) -> EvalRow: ...
+
+    def report(self, at: Progress, row: TrainRow | None, evaluation: EvalRow | None) -> None:
+        """Hand the iteration's rows to the trainer's own loggers (before its checkpoint)."""
+
+    def checkpoint_due(self, at: Progress, evaluated: bool) -> bool: ...
+
+    def checkpoint(self, at: Progress) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class _Clock:
+    """Wall seconds of training so far: those of earlier starts plus this one's."""
+
+    def __init__(self, before: float) -> None:
+        self.before, self.started = before, time.perf_counter()
+
+    def __call__(self) -> float:
+        return round(self.before + time.perf_counter() - self.started, 3)
+
+
+def train(trainer: Trainer, run: Run, cfg: Config) -> None:
+    """Run ``trainer`` to its last iteration in ``run``, resuming from its checkpoint if any."""
+    trainer.setup()
+    try:
+        restored = trainer.restore()
+        at = restored or Progress()
+        for stream in ("train", "eval"):
+            run.truncate_metrics(stream, lambda r: restored is not None and r.get("iteration", -1) <= at.iteration)
+        trainer.start(at, resumed=restored is not None)
+        clock = _Clock(at.wall_s)
+        with progress_bar(total=trainer.iterations, initial=at.iteration, unit=trainer.unit, disable=not cfg.progress,
+                          desc=f"{cfg.runner} {cfg.experiment} seed={cfg.seed}") as bar:
+            if restored is None:  # a resumed run's checkpoint came after its point's evaluation
+                at = _point(trainer, run, replace(at, wall_s=clock()), None, clock, bar)
+            while at.iteration < trainer.iterations:
+                at, metrics = trainer.train_iteration(at)
+                at = replace(at, wall_s=clock())
+                row = None if metrics is None else TrainRow.at(at, metrics)
+                if row is not None:
+                    run.log("train", row.to_record())
+                at = _point(trainer, run, at, row, clock, bar)
+                bar.update(1)
+    finally:
+        trainer.close()
+
+
+def _point(trainer: Trainer, run: Run, at: Progress, row: TrainRow | None, clock: _Clock, bar: tqdm) -> Progress:
+    """Evaluate when due, report, checkpoint when due; the position with the evaluation counted."""
+    evaluation = trainer.evaluate(at) if trainer.eval_due(at) else None
+    if evaluation is not None:
+        run.log("eval", evaluation.to_record())
+        at = replace(at, evaluations=at.evaluations + 1)
+        bar.set_postfix({k: round(v, 2) for k, v in (("return_mean", evaluation.return_mean),
+                         ("return_mean_stochastic", evaluation.return_mean_stochastic)) if v is not None},
+                        refresh=False)
+    trainer.report(at, row, evaluation)
+    if trainer.checkpoint_due(at, evaluation is not None):
+        trainer.checkpoint(replace(at, wall_s=clock()))
+    return at

@@ -1,0 +1,91 @@
+"""The training skeleton with a toy trainer: the order of its steps, the eval and checkpoint
+cadence it asks the trainer about, and resume (rows newer than the checkpoint dropped, no
+re-evaluation of the checkpoint's point)."""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from plls_bench.metrics import EvalRow, TrainRow
+from plls_bench.runs import Run
+from plls_bench.train import loop
+from plls_bench.train.loop import Progress
+from tests.conftest import compose_preset
+
+
+class Toy:
+    """Five iterations of two agent steps, evaluating every second iteration, checkpointing
+    after evaluations only; ``crash_at`` raises in that iteration, as a kill would end it."""
+
+    unit, iterations = "iter", 5
+
+    def __init__(self, run: Run, crash_at: int | None = None) -> None:
+        self.run, self.crash_at, self.calls, self.saved = run, crash_at, [], None
+
+    def setup(self) -> None:
+        self.calls.append("setup")
+
+    def restore(self) -> Progress | None:
+        self.calls.append("restore")
+        saved = self.run.path / "toy.txt"
+        if not saved.exists():
+            return None
+        iteration, agent_steps, env_steps, evaluations = map(int, saved.read_text().split())
+        return Progress(iteration, agent_steps, env_steps=env_steps, evaluations=evaluations)
+
+    def start(self, at: Progress, resumed: bool) -> None:
+        self.calls.append(f"start {at.iteration} {resumed}")
+
+    def train_iteration(self, at: Progress) -> tuple[Progress, dict[str, Any] | None]:
+        if at.iteration + 1 == self.crash_at:
+            raise KeyboardInterrupt
+        self.calls.append(f"train {at.iteration + 1}")
+        return replace(at, iteration=at.iteration + 1, agent_steps=at.agent_steps + 2,
+                       env_steps=at.env_steps + 8), {"loss/x": float(at.iteration)}
+
+    def eval_due(self, at: Progress) -> bool:
+        return at.iteration % 2 == 0 or at.iteration == self.iterations
+
+    def evaluate(self, at: Progress) -> EvalRow:
+        self.calls.append(f"evaluate {at.iteration}")
+        return EvalRow.at(at, episode_returns=[float(at.iteration)], episode_lengths=[1],
+                          return_mean=float(at.iteration))
+
+    def report(self, at: Progress, row: TrainRow | None, evaluation: EvalRow | None) -> None:
+        self.calls.append(f"report {at.evaluations}")
+
+    def checkpoint_due(self, at: Progress, evaluated: bool) -> bool:
+        return evaluated
+
+    def checkpoint(self, at: Progress) -> None:
+        self.calls.append(f"checkpoint {at.iteration}")
+        self.run.write_bytes("toy.txt", f"{at.iteration} {at.agent_steps} {at.env_steps} {at.evaluations}".encode())
+
+    def close(self) -> None:
+        self.calls.append("close")
+
+
+def test_skeleton_order_cadence_and_resume(runs_dir: Path) -> None:
+    cfg = compose_preset("mountaincar_ppo", runs_dir)
+    run = Run(runs_dir / "toy")
+    first = Toy(run, crash_at=4)
+    try:
+        loop.train(first, run, cfg)
+    except KeyboardInterrupt:
+        pass
+    assert first.calls == ["setup", "restore", "start 0 False", "evaluate 0", "report 1", "checkpoint 0",
+                           "train 1", "report 1", "train 2", "evaluate 2", "report 2", "checkpoint 2",
+                           "train 3", "report 2", "close"]
+    assert [r["iteration"] for r in run.read_metrics("train")] == [1, 2, 3]
+    second = Toy(run)
+    loop.train(second, run, cfg)
+    assert second.calls == ["setup", "restore", "start 2 True", "train 3", "report 2", "train 4", "evaluate 4",
+                            "report 3", "checkpoint 4", "train 5", "evaluate 5", "report 4", "checkpoint 5",
+                            "close"], "no re-evaluation at the checkpoint's iteration 2"
+    trains, evals = run.read_metrics("train"), run.read_metrics("eval")
+    assert [r["iteration"] for r in trains] == [1, 2, 3, 4, 5], "row 3 of the killed start dropped, redone"
+    assert [r["iteration"] for r in evals] == [0, 2, 4, 5]
+    assert [r["env_steps"] for r in evals] == [0, 16, 32, 40] and evals[-1]["agent_steps"] == 10
+    assert all(r["wall_s"] >= 0 for r in trains) and set(trains[0]) == {"iteration", "agent_steps", "env_steps",
+                                                                        "wall_s", "loss/x"}
