@@ -43,6 +43,12 @@ def overrides_for(yaml_path: Path) -> list[str]:
     if group == "budget/per_exploration":  # <env>_<exploration>_<profile>
         env, exploration, profile = name.split("_")
         return ["algo=ppo", "runner=ppo", f"algo/exploration={exploration}", f"env={env}", f"budget={profile}"]
+    if group == "budget/per_state_repr":  # <env>_<state repr>_<profile>
+        env, state, profile = name.split("_")
+        return [f"repr/state={state}", f"env={env}", f"budget={profile}"]
+    if group == "env/backend":  # <env>_<profile>: the simulator engine a profile uses for a task
+        env, profile = name.rsplit("_", 1)
+        return [f"env={env}", f"budget={profile}"]
     if group in ("budget/per_algo", "budget/per_recipe"):  # <algo>_<env>_<profile>
         algo, env, profile = name.rsplit("_", 2)  # the algo choice may hold "_" (dbc_readme)
         return [f"algo={algo}", f"runner={algo.split('_')[0]}", f"env={env}", f"budget={profile}"]

@@ -101,6 +101,16 @@ def test_random_policy_data_is_determined_by_its_seed(runs_dir: Path) -> None:
     assert a["truncated"].sum() == 3
 
 
+@pytest.mark.parametrize(("profile", "backend"), [("smoke", "gymnasium"), ("quick", "envpool"), ("paper", "envpool")])
+def test_each_profile_chooses_its_carracing_backend(runs_dir: Path, profile: str, backend: str) -> None:
+    """CI's smoke profile stays on the paper's engine; quick and paper use envpool (README,
+    "Env backends"); the command line still wins."""
+    assert compose_preset("carracing_ppo", runs_dir, f"budget={profile}").env.backend == backend
+    chosen = compose_preset("carracing_ppo", runs_dir, f"budget={profile}", "env.backend=gymnasium")
+    assert chosen.env.backend == "gymnasium"
+    assert compose_preset("mountaincar_ppo", runs_dir, f"budget={profile}").env.backend == "gymnasium"
+
+
 def test_backend_separates_hashes_keys_and_run_dirs(runs_dir: Path) -> None:
     gym_cfg = compose_preset("carracing_data", runs_dir)
     pool_cfg = compose_preset("carracing_data", runs_dir, "env.backend=envpool")
