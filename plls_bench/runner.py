@@ -20,7 +20,7 @@ log = logging.getLogger(__name__)
 RUNNERS: dict[str, str] = {
     "collect": "plls_bench.data:run",
     "ppo": "plls_bench.train.ppo:run",
-    "repr": "plls_bench.repr.train:run",
+    "repr": "plls_bench.repr.runner:run",
     "dbc": "plls_bench.train.dbc:run",
     "study": "plls_bench.analysis.studies:run",
 }

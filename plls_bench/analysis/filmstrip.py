@@ -19,10 +19,15 @@ from typing import Callable
 import cv2
 import gymnasium as gym
 import numpy as np
+from stable_baselines3.common.vec_env import DummyVecEnv
 
 from plls_bench.artifacts import npz_bytes
 from plls_bench.config import Config, ConfigError, FilmstripConfig
 from plls_bench.devices import require_device
+from plls_bench.envs import make_env
+from plls_bench.latent import wrap_latent
+from plls_bench.repr.fit import torch_threads
+from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
 from plls_bench.seeding import derive_seeds
 
@@ -72,22 +77,19 @@ class FrameRecorder(gym.Wrapper):
         self.frame_steps.append(self.length * self.action_repeat)
 
 
-def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0) -> FrameRecorder:
-    """Roll out one episode of ``act`` on ``cfg``'s task (V_s / V_a applied by ``wrap_latent``,
-    as in training) and return its recorder. ``max_steps > 0`` caps the episode (tests)."""
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    from plls_bench.envs import make_env
-    from plls_bench.latent import wrap_latent
-    from plls_bench.repr.fit import torch_threads
-
+def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0,
+           reprs: Representations | None = None) -> FrameRecorder:
+    """Roll out one episode of ``act`` on ``cfg``'s task (``reprs``' V_s / V_a applied by
+    ``wrap_latent``, as in training; None: loaded for ``cfg``, never trained) and return its
+    recorder. ``max_steps > 0`` caps the episode (tests)."""
     if strip.interval % cfg.env.action_repeat:
         raise ConfigError(f"filmstrip.interval: {strip.interval} frames is not a multiple of "
                           f"env.action_repeat = {cfg.env.action_repeat}")
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # pygame renders off-screen (MountainCar, CarRacing)
+    reprs = (reprs or load_representations(cfg)).check(cfg)  # before the env: a missing model fails fast
     recorder = FrameRecorder(make_env(cfg.env, render_mode="rgb_array"), strip.interval,
                              cfg.env.action_repeat, strip.frame_height)
-    venv = wrap_latent(DummyVecEnv([lambda: recorder]), cfg)
+    venv = wrap_latent(DummyVecEnv([lambda: recorder]), reprs)
     # One env: every forward pass is a batch of one, which a second intra-op thread only slows
     # down (10x for V_s's convolutions on a busy 2-core machine). An explicit torch_threads wins.
     with torch_threads(cfg.torch_threads or 1):
@@ -105,27 +107,34 @@ def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0) ->
 
 
 # --------------------------------------------------------------------------- trained policies
-def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
+# The policy loaders import their runner's modules when called: filming a PPO run never imports
+# DBC's agent (baselines.dbc), nor the other way round.
+def _ppo_policy(run_dir: Path, device: str) -> tuple[Config, Act, str, Representations]:
     from plls_bench.train.agent import load_trained
     from plls_bench.train.checkpoint import latest
 
     trained = load_trained(run_dir, device)
-    cfg = replace(trained.cfg, device=device)  # V_s / V_a join the policy here, not on the recorded device
+    cfg = replace(trained.cfg, device=device)  # where load_trained put the policy and V_s / V_a
     found = latest(run_dir)
     assert found is not None  # load_trained raised otherwise
-    return cfg, trained.act, found[0].name
+    return cfg, trained.act, found[0].name, trained.reprs
 
 
-def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str]:
+def _dbc_policy(run_dir: Path, device: str) -> tuple[Config, Act, str, Representations]:
     from plls_bench.train.dbc import to_env_action
     from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
 
-    cfg, agent, space = load_trained_agent(run_dir, device)
-    return cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space), Path(CHECKPOINT).name
+    cfg, agent, space, reprs = load_trained_agent(run_dir, device)
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        return to_env_action(agent.act(obs, deterministic=True), space)
+
+    return cfg, act, Path(CHECKPOINT).name, reprs
 
 
-# runner -> (run dir, device) -> (typed config, deterministic policy, checkpoint name)
-POLICIES: dict[str, Callable[[Path, str], tuple[Config, Act, str]]] = {"ppo": _ppo_policy, "dbc": _dbc_policy}
+# runner -> (run dir, device) -> (typed config, deterministic policy, checkpoint name, its V_s / V_a)
+POLICIES: dict[str, Callable[[Path, str], tuple[Config, Act, str, Representations]]] = {
+    "ppo": _ppo_policy, "dbc": _dbc_policy}
 
 
 def filmstrip_config(env: str, overrides: list[str]) -> FilmstripConfig:
@@ -148,8 +157,8 @@ def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] 
         raise ConfigError(f"{run_dir}: runner {runner!r} has no policy to film; filmstrips exist for "
                           f"{', '.join(POLICIES)}")
     strip = filmstrip_config(record_json["config"]["env"]["name"], overrides or [])
-    cfg, act, checkpoint = POLICIES[runner](run_dir, device)
-    rec = record(cfg, act, strip, max_steps)
+    cfg, act, checkpoint, reprs = POLICIES[runner](run_dir, device)
+    rec = record(cfg, act, strip, max_steps, reprs)
     status = read_json(run_dir / "status.json") or {}
     meta = {"interval": strip.interval, "frame_steps": rec.frame_steps, "episode_return": rec.episode_return,
             "steps_to_goal": rec.length if strip.goal and rec.terminated else None,

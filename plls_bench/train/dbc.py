@@ -24,6 +24,7 @@ from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.evaluate import run_episodes
 from plls_bench.latent import wrap_latent
+from plls_bench.repr.store import Representations, ensure_representations
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 from plls_bench.train.dbc_accounting import write_accounting
@@ -32,11 +33,12 @@ from plls_bench.train.dbc_state import Progress, load_checkpoint, save_checkpoin
 log = logging.getLogger(__name__)
 
 
-def make_envs(cfg: Config, train_seed: int) -> tuple[VecEnv, VecEnv]:
+def make_envs(cfg: Config, train_seed: int, reprs: Representations) -> tuple[VecEnv, VecEnv]:
     """The training and evaluation VecEnvs (one env each), through the latent wrappers: with
     ``repr/action=vae`` the agent acts in V_a's latent box (PL-LS + DBC), else they are unchanged.
     The evaluation env is re-seeded at every evaluation."""
-    train, evaluation = (wrap_latent(make_vec_env(cfg.env, 1, seed), cfg) for seed in (train_seed, train_seed + 1))
+    reprs.check(cfg)
+    train, evaluation = (wrap_latent(make_vec_env(cfg.env, 1, seed), reprs) for seed in (train_seed, train_seed + 1))
     return train, evaluation
 
 
@@ -73,13 +75,14 @@ class Window:
 
 
 class DBCTrainer:
-    """One DBC run: envs, agent, replay and the loop; resumes from the run's checkpoint."""
+    """One DBC run: envs, agent, replay and the loop; resumes from the run's checkpoint. ``reprs``
+    holds the run's V_a (PL-LS + DBC), loaded by the caller's setup."""
 
-    def __init__(self, cfg: Config, run: Run) -> None:
+    def __init__(self, cfg: Config, run: Run, reprs: Representations) -> None:
         self.cfg, self.run, self.dbc = cfg, run, cfg.algo.dbc
         self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
         self.device = resolve_device(cfg.device)
-        self.train_env, self.eval_env = make_envs(cfg, self.seeds.train)
+        self.train_env, self.eval_env = make_envs(cfg, self.seeds.train, reprs)
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))
         repeat = cfg.env.action_repeat
@@ -188,7 +191,7 @@ class DBCTrainer:
 
 def run(cfg: Config, run: Run) -> None:
     """Runner ``dbc`` (see module docstring)."""
-    trainer = DBCTrainer(cfg, run)
+    trainer = DBCTrainer(cfg, run, ensure_representations(cfg))  # V_a built if missing, loaded once
     try:
         trainer.train()
     finally:

@@ -25,6 +25,7 @@ from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.evaluate import run_episodes
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
+from plls_bench.repr.store import ensure_representations
 from plls_bench.runs import Run
 from plls_bench.seeding import Seeds, derive_seeds, sub_seed
 from plls_bench.train import checkpoint, normalize
@@ -89,8 +90,10 @@ def run(cfg: Config, run: Run) -> None:
     assert cfg.algo.ppo is not None
     ppo = cfg.algo.ppo
     seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
-    train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, seeds.train), ppo)
-    eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes), seeds.eval), ppo)
+    reprs = ensure_representations(cfg)  # V_s / V_a built if missing, loaded once for both envs
+    train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, seeds.train, reprs), ppo)
+    n_eval = min(ppo.eval_envs, cfg.budget.eval_episodes)
+    eval_env = normalize.wrap_frozen(build_vec_env(cfg, n_eval, seeds.eval, reprs), ppo)
     try:
         _train(cfg, run, Plan.of(cfg), seeds, train_env, eval_env)
     finally:
