@@ -4,7 +4,8 @@
     nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 2 --updates 20
 
 The env and agent are built as the ``dbc`` runner builds them (``budget=quick``: the reference
-launcher's batch size 128 and hidden size 1024). Acting: ``--steps`` agent steps of the training
+launcher's batch size 128 and hidden size 1024), from a V_a artifact that must already exist
+under ``--runs`` for PL-LS presets (nothing is trained here). Acting: ``--steps`` agent steps of the training
 VecEnv (render, frame stack, stochastic policy forward, replay insert; no updates), reported in
 env steps (frames, action repeat 4) per second. Updates: median time of ``--updates`` full DBC
 updates (critic, bisimulation/transition/reward, actor and temperature on even steps, targets)
@@ -20,7 +21,6 @@ import time
 from pathlib import Path
 from typing import Sequence
 
-import numpy as np
 import torch
 
 REPO = Path(__file__).resolve().parent.parent
@@ -28,6 +28,7 @@ sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
+from plls_bench.repr.store import load_representations  # noqa: E402
 from plls_bench.runs import Run  # noqa: E402
 from plls_bench.seeding import seed_everything  # noqa: E402
 from plls_bench.train.dbc import DBCTrainer  # noqa: E402
@@ -42,7 +43,8 @@ def measure(preset: str, budget: str, threads: int, steps: int, updates: int, ru
                    *overrides])
     torch.set_num_threads(threads)
     seed_everything(0)
-    trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset))
+    # load_representations never trains: the V_a must exist (bench/throughput.py prepares it)
+    trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset), load_representations(cfg))
     trainer.setup()
     try:
         obs = trainer.train_env.reset()

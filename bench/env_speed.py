@@ -74,7 +74,7 @@ def env_rates(n_envs: int, steps: int, rounds: int) -> dict[str, list[float]]:
 
 def encoder_rate(batch: int, repeats: int) -> float:
     """Frames/s of V_s's encoder (the CarRacing architecture, untrained) on one torch thread."""
-    from plls_bench.repr import new_model
+    from plls_bench.repr.train import new_model
 
     with tempfile.TemporaryDirectory() as tmp:
         cfg = compose(["+experiment=carracing_vs", "budget=quick", f"runs_dir={tmp}"])

@@ -4,7 +4,8 @@
     .venv/bin/python bench/ppo_throughput.py --presets carracing_ppo carracing_plls_ppo --iterations 2
 
 Each preset's training vector env and SB3 model are built exactly as the ``ppo`` runner builds
-them (``budget=quick``: the paper's Table 1 / Table 2 PPO settings), one warm-up iteration runs,
+them (``budget=quick``: the paper's Table 1 / Table 2 PPO settings) from V_s / V_a artifacts that
+must already exist under ``--runs`` (nothing is trained here), one warm-up iteration runs,
 then ``--iterations`` PPO iterations (rollout + update, no evaluation) are timed. Prints the
 command and the machine, and rewrites this script's section of ``BENCHMARKS.md``.
 """
@@ -24,6 +25,7 @@ sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
+from plls_bench.repr.store import load_representations  # noqa: E402
 from plls_bench.seeding import derive_seeds, seed_everything  # noqa: E402
 from plls_bench.train.agent import build_vec_env, new_model  # noqa: E402
 from plls_bench.train.ppo import EpisodeStats  # noqa: E402
@@ -42,7 +44,7 @@ def measure(preset: str, budget: str, iterations: int, runs_dir: str,
         torch.set_num_threads(cfg.torch_threads)
     seed = derive_seeds(cfg.seed, cfg.data_seed).train
     seed_everything(seed)
-    venv = build_vec_env(cfg, cfg.algo.ppo.n_envs, seed)
+    venv = build_vec_env(cfg, cfg.algo.ppo.n_envs, seed, load_representations(cfg))  # never trains
     model = new_model(cfg, venv)
     steps = cfg.algo.ppo.steps_per_iteration
     stats, rollout, total, cpu = EpisodeStats(), [], [], []

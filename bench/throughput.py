@@ -56,9 +56,8 @@ def collect_rate(cfg: Config, steps: int) -> float:
 def repr_rate(cfg: Config, which: str, samples: int) -> float:
     """Training samples per second of one V_s / V_a epoch on random inputs of the task's shape."""
     from plls_bench.devices import resolve_device
-    from plls_bench.repr import action_dim, new_model
     from plls_bench.repr.fit import Split, fit, torch_threads
-    from plls_bench.repr.train import training_threads
+    from plls_bench.repr.train import action_dim, new_model, training_threads
 
     mcfg = getattr(cfg.repr, which)
     rng = np.random.default_rng(0)
@@ -80,10 +79,9 @@ def repr_rate(cfg: Config, which: str, samples: int) -> float:
 
 def study_rate(cfg: Config, runs_dir: str) -> float:
     """Runs per second of a study (its V_a built beforehand: that is costed as repr_action)."""
-    from plls_bench.repr import get_action_vae
     from plls_bench.runner import execute
 
-    get_action_vae(cfg)
+    prepare_representations(cfg)
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         execute(cfg, Path(tmp) / "study")
@@ -94,6 +92,16 @@ def study_rate(cfg: Config, runs_dir: str) -> float:
 # change the speed of acting or updating, and a quick-budget V_s would take longer than the bench.
 TINY_REPR = ("budget.data_episodes=2", "budget.data_steps_per_episode=100", "budget.repr_epochs=1",
              "budget.repr_action_epochs=1")
+
+
+def prepare_representations(cfg: Config) -> None:
+    """This script's one training step, before any timing: build (or reuse) the V_s / V_a that
+    ``cfg`` uses, so the measurements below load them and never train."""
+    from plls_bench.repr.store import ensure_representations
+
+    if "vae" in (cfg.repr.state.kind, cfg.repr.action.kind):
+        print(f"building (or reusing) the representations of {cfg.experiment} under {cfg.runs_dir}", flush=True)
+        ensure_representations(cfg)
 
 
 def rate_keys(cfg: Config) -> list[str]:
@@ -127,16 +135,18 @@ def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float
     elif cfg.runner == "repr":
         for which, samples in (("state", args.state_samples), ("action", args.action_samples)):
             if getattr(cfg.repr, which).kind == "vae":
-                rates[f"repr_{which}/{env}"] = (repr_rate(cfg, which, samples), "samples/s")
+                rates[f"repr_{which}/{cfg.env.name}"] = (repr_rate(cfg, which, samples), "samples/s")
     elif cfg.runner == "study":
         rates[f"study/{preset}"] = (study_rate(cfg, args.runs), "runs/s")
     elif cfg.runner == "ppo":
         horizon = [f"algo.ppo.n_steps={args.ppo_steps}"] if args.ppo_steps else []
+        prepare_representations(_config(preset, args.budget, args.runs, *TINY_REPR, *horizon, *engine))
         m = ppo_throughput.measure(preset, args.budget, args.ppo_iterations, args.runs,
                                    [*TINY_REPR, *horizon, *engine])
         rates[keys[0]] = (m["sps"], "env steps/s")
         rates[keys[1]] = (m["rollout_sps"], "env steps/s")  # acting without updates
     elif cfg.runner == "dbc":
+        prepare_representations(_config(preset, args.budget, args.runs, *TINY_REPR, *engine))
         m = dbc_throughput.measure(preset, args.budget, 1, args.dbc_steps, args.dbc_updates, args.runs,
                                    [*TINY_REPR, *engine])
         # one update per agent step, i.e. per action_repeat env steps

@@ -13,8 +13,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 from torch import nn
 
-from plls_bench.config import Config
 from plls_bench.repr.models import ActionVAE, StateVAE
+from plls_bench.repr.store import Representations
 
 
 def _device(module: nn.Module) -> torch.device:
@@ -91,15 +91,14 @@ class LatentAction(VecEnvWrapper):
         return self.venv.step_wait()
 
 
-def wrap_latent(venv: VecEnv, cfg: Config) -> VecEnv:
-    """Apply V_s (``repr.state.kind == "vae"``) and V_a (``repr.action.kind == "vae"``) to
-    ``venv``; with both ``none`` the same ``venv`` object comes back untouched."""
-    from plls_bench.repr import get_action_vae, get_state_vae
-
-    if cfg.repr.state.kind == "vae":
-        venv = LatentObservation(venv, get_state_vae(cfg))
-    if cfg.repr.action.kind == "vae":
-        venv = LatentAction(venv, get_action_vae(cfg), cfg.repr.action.latent_action_bound)
+def wrap_latent(venv: VecEnv, reprs: Representations) -> VecEnv:
+    """Apply the loaded V_s and V_a of ``reprs`` to ``venv`` (each only when present); with
+    neither the same ``venv`` object comes back untouched. Builds and loads nothing: the runner's
+    setup hands the models down (:func:`plls_bench.repr.store.ensure_representations`)."""
+    if reprs.state_vae is not None:
+        venv = LatentObservation(venv, reprs.state_vae)
+    if reprs.action_vae is not None:
+        venv = LatentAction(venv, reprs.action_vae, reprs.action_bound)
     return venv
 
 

@@ -20,6 +20,7 @@ from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
 from plls_bench.runner_specs import runner_spec
+from plls_bench.repr.keys import repr_key
 from plls_bench.runs import Run, config_hash, run_dir_path, stable_hash, variant_name
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
@@ -150,8 +151,6 @@ def _eval_env_steps(cfg: Config) -> int:
 
 
 def _repr_identity(cfg: Config, which: str) -> dict[str, Any]:
-    from plls_bench.repr.store import repr_key  # lazy: imports torch
-
     return repr_key(cfg, which)
 
 

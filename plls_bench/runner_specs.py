@@ -19,6 +19,7 @@ from plls_bench.config.runners import (validate_collect, validate_dbc, validate_
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
+    from plls_bench.repr.store import Representations
     from plls_bench.runs import Run
 
 RunFn = Callable[["Config", "Run"], None]
@@ -32,6 +33,7 @@ class TrainedPolicy:
     cfg: Config      # the run's recorded config, on the device the policy was loaded to
     act: Act
     checkpoint: str  # file name of the checkpoint it came from
+    reprs: Representations  # its V_s / V_a, loaded (never trained) on that device
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,7 @@ def _collect() -> RunFn:
 
 
 def _repr() -> RunFn:
-    from plls_bench.repr.train import run
+    from plls_bench.repr.runner import run
     return run
 
 
@@ -88,16 +90,16 @@ def _ppo_policy(run_dir: Path, device: str) -> TrainedPolicy:
     found = latest(run_dir)
     assert found is not None  # load_trained raised otherwise
     # V_s / V_a join the policy on the device it was loaded to, not the recorded one
-    return TrainedPolicy(replace(trained.cfg, device=device), trained.act, found[0].name)
+    return TrainedPolicy(replace(trained.cfg, device=device), trained.act, found[0].name, trained.reprs)
 
 
 def _dbc_policy(run_dir: Path, device: str) -> TrainedPolicy:
     from plls_bench.train.dbc import to_env_action
     from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
 
-    cfg, agent, space = load_trained_agent(run_dir, device)
+    cfg, agent, space, reprs = load_trained_agent(run_dir, device)
     return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
-                         Path(CHECKPOINT).name)
+                         Path(CHECKPOINT).name, reprs)
 
 
 # --------------------------------------------------------------------------- the registry

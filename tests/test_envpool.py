@@ -131,9 +131,9 @@ def test_backend_validation_at_small_size(runs_dir: Path, tmp_path: Path) -> Non
     import json
 
     from plls_bench.analysis import backend_validation
-    from plls_bench.repr import get_state_vae
+    from plls_bench.repr.store import ensure_representations
 
-    get_state_vae(compose_preset("carracing_vs", runs_dir, "env.backend=envpool"))
+    ensure_representations(compose_preset("carracing_vs", runs_dir, "env.backend=envpool"))
     out = tmp_path / "analysis"
     backend_validation.main(["--episodes", "3", "--steps", "30", "--budget", "smoke", "--runs", str(runs_dir),
                              "--out", str(out)])

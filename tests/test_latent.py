@@ -11,7 +11,8 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import LatentAction, LatentObservation, latent_modules, wrap_latent
-from plls_bench.repr import new_model
+from plls_bench.repr.store import Representations, ensure_representations
+from plls_bench.repr.train import new_model
 from plls_bench.repr.accounting import parameter_counts
 from tests.conftest import compose_preset
 
@@ -65,7 +66,7 @@ def check_vec_step(venv: VecEnv, obs, rewards, dones, infos) -> None:
 def test_no_representation_leaves_the_env_untouched(runs_dir: Path) -> None:
     cfg = compose_preset(None, runs_dir)
     venv = make_vec_env(cfg.env, 2, seed=0)
-    assert wrap_latent(venv, cfg) is venv
+    assert wrap_latent(venv, ensure_representations(cfg)) is venv
     assert not any(runs_dir.glob("**/*")), "nothing trained or written"
     venv.close()
 
@@ -138,7 +139,7 @@ def test_pl_ls_carracing_env_with_trained_vs_and_va(runs_dir: Path) -> None:
     """The full PL-LS env at smoke budget: z in R^32 in, e in [-3, 3]^32 out, raw actions valid."""
     cfg = compose_preset(None, runs_dir, "env=carracing", "repr/state=vae", "repr/action=vae")
     recorder = Recorder(make_vec_env(cfg.env, 2, seed=0))
-    venv = wrap_latent(recorder, cfg)
+    venv = wrap_latent(recorder, ensure_representations(cfg))
     assert venv.observation_space.shape == (32,) and venv.action_space.shape == (32,)
     assert set(latent_modules(venv)) == {"V_s.encoder", "V_a.decoder"}
     counts = parameter_counts(latent_modules(venv), trainable=[])
@@ -155,7 +156,7 @@ def test_pl_ls_carracing_env_with_trained_vs_and_va(runs_dir: Path) -> None:
 @pytest.mark.slow
 def test_sb3_ppo_learns_through_the_latent_action_wrapper(runs_dir: Path) -> None:
     cfg = compose_preset(None, runs_dir, "repr/action=vae")
-    venv = wrap_latent(make_vec_env(cfg.env, 2, seed=0), cfg)
+    venv = wrap_latent(make_vec_env(cfg.env, 2, seed=0), ensure_representations(cfg))
     model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=64)
     assert model.num_timesteps == 64

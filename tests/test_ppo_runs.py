@@ -69,7 +69,7 @@ def test_preset_runs_end_to_end_at_smoke_budget(preset: str, shared_runs: Path) 
     assert (params["total"] > params["trainable"]) == bool(frozen)
     trained = load_trained(run_dir)
     assert trained.cfg == cfg
-    venv = build_vec_env(cfg, 1, seed=0)
+    venv = build_vec_env(cfg, 1, seed=0, reprs=trained.reprs)
     actions = trained.act(venv.reset())
     venv.close()
     assert actions.shape == (1, *trained.model.action_space.shape)

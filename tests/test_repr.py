@@ -10,13 +10,22 @@ import pytest
 import torch
 
 from plls_bench.data import get_dataset
-from plls_bench.repr import get_action_vae, get_state_vae, new_model
-from plls_bench.repr.store import CheckpointError, CheckpointMismatch, ensure_artifact, load_weights, sha256
+from plls_bench.repr.keys import sha256
+from plls_bench.repr.store import (CheckpointError, CheckpointMismatch, ensure_artifact, ensure_representations,
+                                   load_weights)
+from plls_bench.repr.train import new_model
 from plls_bench.runner import execute
 from plls_bench.runs import atomic_write_json, read_json, read_jsonl
 from tests.conftest import compose_preset, in_two_processes, run_cli
 
 EPOCH_KEYS = {"model", "epoch", "train_loss", "train_recon_mse", "train_kl", "val_loss", "val_recon_mse", "val_kl"}
+
+
+def ensure_va(cfg) -> torch.nn.Module:
+    """The config's V_a through the runners' one representation step (built on first use)."""
+    vae = ensure_representations(cfg).action_vae
+    assert vae is not None
+    return vae
 
 
 def run_preset(preset: str, runs_dir: Path, *overrides: str) -> Path:
@@ -95,7 +104,7 @@ def test_va_preset_trains_one_model_per_trial_on_the_shared_data(runs_dir: Path)
     """The paper's V_a test MSE +- is over repeated trainings on one dataset; trial 0's model is
     the one every PL-LS run uses."""
     from plls_bench.data import dataset_key
-    from plls_bench.repr.store import repr_key
+    from plls_bench.repr.keys import repr_key
 
     trials = [compose_preset("mountaincar_va", runs_dir, f"seed={k}") for k in range(3)]
     assert len({str(dataset_key(c)) for c in trials}) == 1
@@ -107,7 +116,7 @@ def test_va_preset_trains_one_model_per_trial_on_the_shared_data(runs_dir: Path)
 def test_smoke_va_reconstructs_held_out_actions_better_than_their_mean(runs_dir: Path) -> None:
     """A collapsed or untrained V_a reconstructs every action as about the mean: it fails here."""
     cfg = compose_preset("mountaincar_va", runs_dir)
-    vae = get_action_vae(cfg)
+    vae = ensure_va(cfg)
     data, _ = get_dataset(cfg)
     train, test = torch.as_tensor(data.action_split("train")), torch.as_tensor(data.action_split("test"))
     baseline = float((test - train.mean(0)).pow(2).mean())
@@ -131,10 +140,12 @@ def test_parallel_trials_train_the_representation_once(runs_dir: Path) -> None:
 
 
 def test_models_come_back_frozen_in_eval_mode(runs_dir: Path) -> None:
-    vae = get_action_vae(compose_preset("mountaincar_va", runs_dir))
+    vae = ensure_va(compose_preset("mountaincar_va", runs_dir))
     assert not vae.training and not any(p.requires_grad for p in vae.parameters())
+    no_vs = compose_preset("mountaincar_va", runs_dir)
+    assert ensure_representations(no_vs).state_vae is None
     with pytest.raises(ValueError, match="repr.state.kind"):
-        get_state_vae(compose_preset("mountaincar_va", runs_dir))
+        ensure_artifact(no_vs, "state")
 
 
 def state_of(model: torch.nn.Module) -> dict[str, torch.Tensor]:
@@ -142,7 +153,7 @@ def state_of(model: torch.nn.Module) -> dict[str, torch.Tensor]:
 
 
 def test_a_killed_training_resumes_to_the_same_weights(runs_dir: Path, monkeypatch) -> None:
-    reference = state_of(get_action_vae(compose_preset("mountaincar_va", runs_dir / "a")))
+    reference = state_of(ensure_va(compose_preset("mountaincar_va", runs_dir / "a")))
     cfg = compose_preset("mountaincar_va", runs_dir / "b")
     import plls_bench.repr.fit as fit
 
@@ -156,11 +167,11 @@ def test_a_killed_training_resumes_to_the_same_weights(runs_dir: Path, monkeypat
 
     monkeypatch.setattr(fit, "atomic_write_bytes", killed_after_ten_epochs)
     with pytest.raises(KeyboardInterrupt):
-        get_action_vae(cfg)
+        ensure_va(cfg)
     monkeypatch.setattr(fit, "atomic_write_bytes", real_write)
     partial = list((runs_dir / "b" / "artifacts" / "repr_action").glob(".*.partial"))
     assert len(partial) == 1 and torch.load(partial[0] / "resume.pt", weights_only=True)["epoch"] == 10
-    resumed = get_action_vae(cfg)
+    resumed = ensure_va(cfg)
     assert all(torch.equal(resumed.state_dict()[k], v) for k, v in reference.items())
     history = read_json(ensure_artifact(cfg, "action").path / "history.json")
     assert [row["epoch"] for row in history] == list(range(1, cfg.budget.epochs_for("action") + 1))
@@ -168,10 +179,10 @@ def test_a_killed_training_resumes_to_the_same_weights(runs_dir: Path, monkeypat
 
 
 def test_an_incomplete_resume_file_restarts_training_from_scratch(runs_dir: Path, caplog) -> None:
-    reference = state_of(get_action_vae(compose_preset("mountaincar_va", runs_dir / "a")))
+    reference = state_of(ensure_va(compose_preset("mountaincar_va", runs_dir / "a")))
     cfg = compose_preset("mountaincar_va", runs_dir / "b")
     from plls_bench.artifacts import artifact_path
-    from plls_bench.repr.store import repr_key
+    from plls_bench.repr.keys import repr_key
 
     final = artifact_path(cfg.runs_dir, "repr_action", repr_key(cfg, "action"))
     torn = final.parent / f".{final.name}.partial" / "resume.pt"
@@ -179,7 +190,7 @@ def test_an_incomplete_resume_file_restarts_training_from_scratch(runs_dir: Path
     # loadable weights but no optimizer state: the weights must not survive into the fresh start
     torch.save({"model": {k: v + 1.0 for k, v in reference.items()}, "epoch": 5}, torn)
     with caplog.at_level(logging.WARNING):
-        rebuilt = get_action_vae(cfg)
+        rebuilt = ensure_va(cfg)
     assert "ignoring unreadable resume state" in caplog.text
     assert all(torch.equal(rebuilt.state_dict()[k], v) for k, v in reference.items())
 
@@ -199,13 +210,13 @@ def test_a_checkpoint_of_other_shapes_is_refused_naming_the_tensor(runs_dir: Pat
     meta = read_json(path.parent / "meta.json")
     atomic_write_json(path.parent / "meta.json", {**meta, "sha256": {**meta["sha256"], "model.pt": sha256(path)}})
     with pytest.raises(CheckpointMismatch, match=r"decoder\.0\.0\.weight: checkpoint \[8, 8\]"):
-        get_action_vae(cfg)
+        ensure_va(cfg)
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "delete_meta"])
 def test_a_corrupt_artifact_is_discarded_and_rebuilt(runs_dir: Path, damage: str, caplog) -> None:
     cfg = compose_preset("mountaincar_va", runs_dir)
-    reference = state_of(get_action_vae(cfg))
+    reference = state_of(ensure_va(cfg))
     path = ensure_artifact(cfg, "action").path
     model_file = path / "model.pt"
     if damage == "truncate":
@@ -217,7 +228,7 @@ def test_a_corrupt_artifact_is_discarded_and_rebuilt(runs_dir: Path, damage: str
     else:
         (path / "meta.json").unlink()
     with caplog.at_level(logging.WARNING):
-        rebuilt = get_action_vae(cfg)
+        rebuilt = ensure_va(cfg)
     assert "discarding corrupt repr_action artifact" in caplog.text
     assert all(torch.equal(rebuilt.state_dict()[k], v) for k, v in reference.items())
 

@@ -17,7 +17,8 @@ from plls_bench.composition import compose
 from plls_bench.config import ConfigError
 from plls_bench.report import render_all
 from plls_bench.report.collect import verify_outputs
-from plls_bench.repr import get_action_vae, new_model
+from plls_bench.repr.store import ensure_representations
+from plls_bench.repr.train import new_model
 from plls_bench.runner import execute
 from plls_bench.runs import read_json
 from tests.conftest import compose_preset, run_cli
@@ -132,7 +133,7 @@ def test_the_numbers_tell_a_trained_va_from_an_untrained_one(tmp_path: Path) -> 
     actions unrelated to the raw ones, so its reconstructions drive the car no better than
     shuffled actions, and left/right are not told apart by decoding."""
     cfg = compose_preset("mountaincar_onestep", tmp_path)
-    trained = run_study("onestep", get_action_vae(cfg), cfg)
+    trained = run_study("onestep", ensure_representations(cfg).action_vae, cfg)
     untrained = run_study("onestep", new_model(cfg, "action", 1).eval(), cfg)
     assert trained["recon/mean_abs_action_error"] < 0.25 < untrained["recon/mean_abs_action_error"]
     assert trained["dynamics/state_error_vs_shuffled"] < 0.5 < untrained["dynamics/state_error_vs_shuffled"]

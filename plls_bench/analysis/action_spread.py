@@ -28,6 +28,7 @@ EXPLORATION = ("gaussian", "gsde")
 
 def env_actions(experiment: str, exploration: str, budget: str, seed: int, steps: int) -> np.ndarray:
     """``(steps, n_envs)`` env actions of the untrained policy of trial ``seed``, sampled."""
+    from plls_bench.repr.store import ensure_representations
     from plls_bench.train.agent import build_vec_env, new_model
     from plls_bench.train.normalize import wrap_training
 
@@ -35,7 +36,8 @@ def env_actions(experiment: str, exploration: str, budget: str, seed: int, steps
                    f"seed={seed}", "progress=false", "device=cpu"])
     ppo = cfg.algo.ppo
     assert ppo is not None
-    venv = wrap_training(build_vec_env(cfg, ppo.n_envs, derive_seeds(seed, cfg.data_seed).train), ppo)
+    reprs = ensure_representations(cfg)  # as the PPO runner's setup: V_a built if missing
+    venv = wrap_training(build_vec_env(cfg, ppo.n_envs, derive_seeds(seed, cfg.data_seed).train, reprs), ppo)
     model = new_model(cfg, venv)
     model.set_random_seed(derive_seeds(seed, cfg.data_seed).train)
     decoded = cfg.repr.action.kind == "vae"  # LatentAction keeps what it sent (reached through the wrappers)

@@ -88,18 +88,12 @@ def reconstruction(data: dict[str, dict[str, np.ndarray]], runs: str, budget: st
     """Posterior-mean reconstruction MSE of the profile's V_s (trained on ``trained_on`` frames)
     on each backend's frames of (1)."""
     from plls_bench.devices import resolve_device
-    from plls_bench.repr import get_state_vae
     from plls_bench.repr.fit import Split, mean_reconstruction_mse
-
-    from plls_bench.artifacts import is_built
-    from plls_bench.repr.store import KINDS, repr_key
+    from plls_bench.repr.store import load_representations
 
     cfg = _config(trained_on, runs, budget)
-    if not is_built(runs, KINDS["state"], repr_key(cfg, "state")):
-        raise FileNotFoundError(f"no V_s trained on {trained_on} frames at budget={budget} under {runs}: "
-                                f"run `python -m plls_bench +experiment=carracing_vs budget={budget} "
-                                f"env.backend={trained_on}` first")
-    model = get_state_vae(cfg).eval()
+    model = load_representations(cfg).state_vae  # never trains: a missing V_s names its preset
+    assert model is not None
     mse = {}
     for backend, arrays in data.items():
         frames = arrays["observations"]
@@ -118,7 +112,7 @@ def policy_returns(run_dir: Path, episodes: int) -> dict[str, Any]:
     out: dict[str, Any] = {"run": str(run_dir)}
     for backend in BACKENDS:
         cfg = dataclasses.replace(trained.cfg, env=dataclasses.replace(trained.cfg.env, backend=backend), device="cpu")
-        venv = build_vec_env(cfg, min(episodes, 10), 0)
+        venv = build_vec_env(cfg, min(episodes, 10), 0, trained.reprs)
         try:
             result = run_episodes(venv, lambda obs: trained.act(obs), episodes, VALIDATION_SEED)
         finally:

@@ -22,6 +22,7 @@ from typing import Callable
 import cv2
 import gymnasium as gym
 import numpy as np
+from stable_baselines3.common.vec_env import DummyVecEnv
 
 from plls_bench.artifacts import npz_bytes
 from plls_bench.composition import filmstrip_config
@@ -29,6 +30,10 @@ from plls_bench.config import Config, ConfigError, FilmstripConfig
 from plls_bench.devices import require_device
 from plls_bench.runner_specs import RUNNERS, TrainedPolicy, filming_runners
 from plls_bench.runs import Run, RunOutput, read_json
+from plls_bench.envs import make_env
+from plls_bench.latent import wrap_latent
+from plls_bench.repr.fit import torch_threads
+from plls_bench.repr.store import Representations, load_representations
 from plls_bench.seeding import derive_seeds
 
 __all__ = ["FrameRecorder", "filmstrip_config", "main", "make_filmstrip", "policy_loader", "record"]
@@ -79,22 +84,19 @@ class FrameRecorder(gym.Wrapper):
         self.frame_steps.append(self.length * self.action_repeat)
 
 
-def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0) -> FrameRecorder:
-    """Roll out one episode of ``act`` on ``cfg``'s task (V_s / V_a applied by ``wrap_latent``,
-    as in training) and return its recorder. ``max_steps > 0`` caps the episode (tests)."""
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    from plls_bench.envs import make_env
-    from plls_bench.latent import wrap_latent
-    from plls_bench.repr.fit import torch_threads
-
+def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0,
+           reprs: Representations | None = None) -> FrameRecorder:
+    """Roll out one episode of ``act`` on ``cfg``'s task (``reprs``' V_s / V_a applied by
+    ``wrap_latent``, as in training; None: loaded for ``cfg``, never trained) and return its
+    recorder. ``max_steps > 0`` caps the episode (tests)."""
     if strip.interval % cfg.env.action_repeat:
         raise ConfigError(f"filmstrip.interval: {strip.interval} frames is not a multiple of "
                           f"env.action_repeat = {cfg.env.action_repeat}")
     os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # pygame renders off-screen (MountainCar, CarRacing)
+    reprs = (reprs or load_representations(cfg)).check(cfg)  # before the env: a missing model fails fast
     recorder = FrameRecorder(make_env(cfg.env, render_mode="rgb_array"), strip.interval,
                              cfg.env.action_repeat, strip.frame_height)
-    venv = wrap_latent(DummyVecEnv([lambda: recorder]), cfg)
+    venv = wrap_latent(DummyVecEnv([lambda: recorder]), reprs)
     # One env: every forward pass is a batch of one, which a second intra-op thread only slows
     # down (10x for V_s's convolutions on a busy 2-core machine). An explicit torch_threads wins.
     with torch_threads(cfg.torch_threads or 1):
@@ -130,7 +132,7 @@ def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] 
     load = policy_loader(run_dir, record_json["config"].get("runner"))
     strip = filmstrip_config(record_json["config"]["env"]["name"], overrides or [])
     policy = load(run_dir, device)
-    rec = record(policy.cfg, policy.act, strip, max_steps)
+    rec = record(policy.cfg, policy.act, strip, max_steps, policy.reprs)
     status = read_json(run_dir / "status.json") or {}
     meta = {"interval": strip.interval, "frame_steps": rec.frame_steps, "episode_return": rec.episode_return,
             "steps_to_goal": rec.length if strip.goal and rec.terminated else None,

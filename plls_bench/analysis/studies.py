@@ -22,8 +22,8 @@ from plls_bench.analysis import measures
 from plls_bench.analysis.mountaincar import MountainCar
 from plls_bench.artifacts import npz_bytes
 from plls_bench.config import Config, StudyConfig
-from plls_bench.repr import ActionVAE, get_action_vae
-from plls_bench.repr.store import ensure_artifact
+from plls_bench.repr.models import ActionVAE
+from plls_bench.repr.store import ensure_representations
 from plls_bench.runs import Run, read_json
 from plls_bench.seeding import derive_seeds
 
@@ -198,11 +198,12 @@ def study_rngs(cfg: Config) -> tuple[np.random.Generator, ...]:
 
 
 def run(cfg: Config, run: Run) -> None:
-    """Runner ``study``: the study ``cfg.study`` against the V_a of ``cfg`` (trained on first use)."""
+    """Runner ``study``: the study ``cfg.study`` against the V_a of ``cfg`` (built if missing)."""
     study = cfg.study
     assert study is not None, "Config.validate requires a study section for runner=study"
-    vae = get_action_vae(cfg)
-    artifact = ensure_artifact(cfg, "action").path  # already built by get_action_vae: a lookup
+    reprs = ensure_representations(cfg)
+    vae, artifact = reprs.action_vae, reprs.artifacts["action"].path
+    assert vae is not None, "Config.validate requires repr/action=vae for runner=study"
     actions_rng, eps_rng, shuffle_rng = study_rngs(cfg)
     with MountainCar(cfg.env) as car:
         enc = encode(vae, sample_actions(study, actions_rng), study.samples_per_action, eps_rng,

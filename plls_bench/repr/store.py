@@ -1,6 +1,7 @@
-"""Trained representations as content-addressed artifacts: key, build, verify, load.
+"""Trained representations as content-addressed artifacts: verify, get-or-build, load.
 
-An artifact (``<runs_dir>/artifacts/repr_{action,state}/<hash>/``) holds::
+An artifact (``<runs_dir>/artifacts/repr_{action,state}/<hash>/``, ``hash`` from
+:func:`plls_bench.repr.keys.repr_key`) holds::
 
     model.pt       the state dict (tensors only; loaded with ``weights_only=True``)
     history.json   one row per epoch: train/val loss, recon MSE, KL (Figs. 6, 13, 15)
@@ -9,31 +10,34 @@ An artifact (``<runs_dir>/artifacts/repr_{action,state}/<hash>/``) holds::
     meta.json      sizes, dims, build time and the sha256 of every file above
     key.json       what determines the content (written last by ``get_or_build``)
 
-Every trial of a task shares one artifact, built once under a file lock.
+Every trial of a task shares one artifact, built once under a file lock. Two entry points:
+
+- :func:`ensure_representations` for a runner's setup (``ppo``, ``dbc``, ``study``, ``repr``):
+  builds what is missing, loads every model the config uses once, logs the artifact keys;
+- :func:`load_representations` for what only reads (filmstrips, ``load_trained``, bench scripts):
+  never trains; a missing artifact raises :class:`MissingArtifact` naming its key and the
+  command that builds it.
 """
 from __future__ import annotations
 
-import hashlib
 import logging
-from dataclasses import asdict
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Callable, Mapping
 
 import torch
 from filelock import FileLock
 
-from plls_bench.artifacts import Artifact, discard, get_or_build
-from plls_bench.config import ActionReprConfig, Config, StateReprConfig
+from plls_bench.artifacts import Artifact, discard, get_or_build, is_built
+from plls_bench.config import Config
+from plls_bench.devices import resolve_device
+from plls_bench.repr.keys import (CONFIG_KEYS, FILES, KINDS, NAMES, build_command, model_config, repr_key,
+                                  repr_path, sha256)
+from plls_bench.repr.models import ActionVAE, StateVAE
+from plls_bench.repr.train import build, new_model
 from plls_bench.runs import read_json
 
 log = logging.getLogger(__name__)
-
-REPR_FORMAT = 1  # bump when training or the stored layout changes: old artifacts are never reused
-KINDS = {"action": "repr_action", "state": "repr_state"}
-CONFIG_KEYS = {"action": "repr.action", "state": "repr.state"}
-FILES = ("model.pt", "history.json", "test.json", "samples.npz")
-# Settings used only at policy time: changing them must not retrain the VAE.
-_NOT_IN_KEY = ("kind", "latent_action_bound")
 
 
 class CheckpointError(ValueError):
@@ -44,29 +48,33 @@ class CheckpointMismatch(CheckpointError):
     """A stored checkpoint's tensors do not fit the model the config describes."""
 
 
-def model_config(cfg: Config, which: str) -> ActionReprConfig | StateReprConfig:
-    if which not in KINDS:
-        raise ValueError(f"which must be 'action' or 'state', got {which!r}")
-    return cfg.repr.action if which == "action" else cfg.repr.state
+class MissingArtifact(FileNotFoundError):
+    """A load-only caller asked for an artifact that is not built (or no longer verifies)."""
 
 
-def repr_key(cfg: Config, which: str) -> dict[str, Any]:
-    """Everything that determines a trained representation: data, architecture, training."""
-    from plls_bench.data import dataset_key
+@dataclass(frozen=True)
+class Representations:
+    """The frozen V_s / V_a a config uses, loaded once (None where ``repr.*.kind`` is ``none``).
 
-    settings = {k: v for k, v in asdict(model_config(cfg, which)).items() if k not in _NOT_IN_KEY}
-    from plls_bench.repr import training_seed
+    ``action_bound`` is ``repr.action.latent_action_bound`` (the policy's latent action box);
+    ``artifacts`` maps ``state`` / ``action`` to the artifact each model was loaded from.
+    """
 
-    return {"format": REPR_FORMAT, "model": which, "data": dataset_key(cfg), "repr": settings,
-            "epochs": cfg.budget.epochs_for(which), "training_seed": training_seed(cfg, which)}
+    state_vae: StateVAE | None = None
+    action_vae: ActionVAE | None = None
+    action_bound: float = 0.0
+    artifacts: Mapping[str, Artifact] = field(default_factory=dict)
 
-
-def sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for chunk in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
+    def check(self, cfg: Config) -> Representations:
+        """``self``, once it holds exactly the models ``cfg`` turns on: an env built from a PL-LS
+        config without its models would silently act in the raw spaces."""
+        for which, model in (("state", self.state_vae), ("action", self.action_vae)):
+            wanted = model_config(cfg, which).kind == "vae"
+            if wanted != (model is not None):
+                raise ValueError(f"{CONFIG_KEYS[which]}.kind is {model_config(cfg, which).kind!r} but "
+                                 f"{NAMES[which]} is {'not ' if wanted else ''}among the representations "
+                                 f"given: pass ensure_representations(cfg) or load_representations(cfg)")
+        return self
 
 
 def verify(path: Path) -> str | None:
@@ -82,11 +90,16 @@ def verify(path: Path) -> str | None:
     return None
 
 
+def _require_vae(cfg: Config, which: str) -> None:
+    kind = model_config(cfg, which).kind
+    if kind != "vae":
+        raise ValueError(f"{CONFIG_KEYS[which]}.kind is {kind!r}: set repr/{which}=vae to get {NAMES[which]}")
+
+
 def ensure_artifact(cfg: Config, which: str) -> Artifact:
     """The verified artifact for ``cfg``'s ``which`` model, trained first if needed. A corrupt
     artifact (a file changed or torn since it was built) is discarded, logged and rebuilt."""
-    from plls_bench.repr.train import build  # lazy: training imports the dataset and simulators
-
+    _require_vae(cfg, which)
     key, kind = repr_key(cfg, which), KINDS[which]
     artifact = get_or_build(cfg.runs_dir, kind, key, lambda out: build(cfg, which, out))
     problem = verify(artifact.path)
@@ -101,6 +114,21 @@ def ensure_artifact(cfg: Config, which: str) -> Artifact:
     if problem is not None:
         raise RuntimeError(f"rebuilt {kind} artifact {artifact.path} fails verification: {problem}")
     return artifact
+
+
+def find_artifact(cfg: Config, which: str) -> Artifact:
+    """The verified artifact for ``cfg``'s ``which`` model, never built here: a missing or
+    corrupt one raises :class:`MissingArtifact` naming its key and the command that builds it."""
+    _require_vae(cfg, which)
+    path = repr_path(cfg, which)
+    if not is_built(cfg.runs_dir, KINDS[which], repr_key(cfg, which)):
+        raise MissingArtifact(f"{NAMES[which]} artifact {KINDS[which]}/{path.name} is missing (no {path}): "
+                              f"run `{build_command(cfg, which)}` first")
+    problem = verify(path)
+    if problem is not None:
+        raise MissingArtifact(f"{NAMES[which]} artifact {KINDS[which]}/{path.name} at {path} is corrupt "
+                              f"({problem}): run `{build_command(cfg, which)}` to rebuild it")
+    return Artifact(path, built=False)
 
 
 def load_weights(path: Path, model: torch.nn.Module, what: str) -> None:
@@ -126,3 +154,40 @@ def load_weights(path: Path, model: torch.nn.Module, what: str) -> None:
         raise CheckpointMismatch(f"checkpoint {path} does not match the config ({what}): "
                                  + "; ".join(problems))
     model.load_state_dict(state)
+
+
+def load_model(cfg: Config, which: str, artifact: Artifact) -> ActionVAE | StateVAE:
+    """The artifact's model: frozen, in eval mode, on ``cfg.device``. V_a's input size comes from
+    the artifact's ``meta.json``, so loading never builds the task's env."""
+    meta = read_json(artifact.path / "meta.json") or {}
+    n_actions = int(meta["input_dim"]) if which == "action" and "input_dim" in meta else None
+    model = new_model(cfg, which, n_actions)
+    load_weights(artifact.path / "model.pt", model, CONFIG_KEYS[which])
+    return model.to(resolve_device(cfg.device)).eval().requires_grad_(False)
+
+
+def ensure_representations(cfg: Config) -> Representations:
+    """Every representation ``cfg`` uses, built first where missing (under the artifact's file
+    lock, as every trial shares it) and loaded once. A runner's one representation step."""
+    return _representations(cfg, ensure_artifact)
+
+
+def load_representations(cfg: Config) -> Representations:
+    """Every representation ``cfg`` uses, loaded; never trains (raises :class:`MissingArtifact`)."""
+    return _representations(cfg, find_artifact)
+
+
+def _representations(cfg: Config, lookup: Callable[[Config, str], Artifact]) -> Representations:
+    models: dict[str, ActionVAE | StateVAE] = {}
+    artifacts: dict[str, Artifact] = {}
+    for which in ("state", "action"):
+        if model_config(cfg, which).kind != "vae":
+            continue
+        artifacts[which] = lookup(cfg, which)
+        models[which] = load_model(cfg, which, artifacts[which])
+        log.info("%s artifact %s/%s %s, loaded from %s", NAMES[which], KINDS[which], artifacts[which].path.name,
+                 "built" if artifacts[which].built else "found", artifacts[which].path)
+    state, action = models.get("state"), models.get("action")
+    assert state is None or isinstance(state, StateVAE)
+    assert action is None or isinstance(action, ActionVAE)
+    return Representations(state, action, cfg.repr.action.latent_action_bound, artifacts)

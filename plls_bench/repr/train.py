@@ -1,14 +1,12 @@
-"""Offline phase of PL-LS (Algorithm 1, lines 2-3): train V_s and V_a on random-policy data.
+"""Offline phase of PL-LS (Algorithm 1, lines 2-3): train V_s or V_a on random-policy data.
 
-``build`` trains one model into an artifact directory (see :mod:`plls_bench.repr.store`); the
-runner ``repr`` makes sure the configured models exist and copies their metrics and samples into
-its run, so a trial that reuses an artifact built by another still gets complete metrics.
+``build(cfg, which, out)`` trains one model and writes every file of its artifact into ``out``;
+only :func:`plls_bench.repr.store.ensure_artifact` calls it, under the artifact's file lock.
+``new_model`` is the untrained architecture a config describes (the store loads weights into it).
 """
 from __future__ import annotations
 
 import io
-import json
-import logging
 import shutil
 import time
 from pathlib import Path
@@ -16,19 +14,32 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from plls_bench.artifacts import artifact_path, save_npz
+from plls_bench.artifacts import save_npz
 from plls_bench.config import Config
 from plls_bench.data import RandomPolicyData, get_dataset
 from plls_bench.devices import resolve_device
-from plls_bench.repr import get_action_vae, get_state_vae, new_model, training_seed
-from plls_bench.repr.accounting import architecture_summary, parameter_counts
+from plls_bench.envs import make_env
 from plls_bench.repr.fit import Split, batches, evaluate, fit, mean_reconstruction_mse, torch_threads
-from plls_bench.repr.models import VAE
+from plls_bench.repr.keys import FILES, model_config, repr_path, sha256, training_seed
+from plls_bench.repr.models import VAE, ActionVAE, StateVAE
 from plls_bench.repr.samples import action_samples, state_samples
-from plls_bench.repr.store import FILES, KINDS, ensure_artifact, model_config, repr_key, sha256
-from plls_bench.runs import Run, atomic_write_bytes, atomic_write_json, read_json
+from plls_bench.runs import atomic_write_bytes, atomic_write_json
 
-log = logging.getLogger(__name__)
+
+def action_dim(cfg: Config) -> int:
+    """The task's action dimension, read from its env (cheap: no reset, no rendering)."""
+    env = make_env(cfg.env, for_data=True)
+    try:
+        return int(np.prod(env.action_space.shape))
+    finally:
+        env.close()
+
+
+def new_model(cfg: Config, which: str, n_actions: int | None = None) -> ActionVAE | StateVAE:
+    """An untrained model with the config's architecture (``n_actions`` for V_a, else from the env)."""
+    if which == "action":
+        return ActionVAE(cfg.repr.action, n_actions if n_actions is not None else action_dim(cfg))
+    return StateVAE(cfg.repr.state, cfg.env.image_size)
 
 
 def splits(data: RandomPolicyData, which: str, val_fraction: float) -> tuple[Split, Split, Split]:
@@ -64,7 +75,7 @@ def build(cfg: Config, which: str, out: Path) -> None:
     data, _ = get_dataset(cfg)
     train, val, test = splits(data, which, mcfg.val_fraction)
     seed = training_seed(cfg, which)
-    final = artifact_path(cfg.runs_dir, KINDS[which], repr_key(cfg, which))
+    final = repr_path(cfg, which)
     resume = final.parent / f".{final.name}.partial" / "resume.pt"  # survives a kill; removed when done
     resume.parent.mkdir(parents=True, exist_ok=True)
     with torch.random.fork_rng(devices=[]), torch_threads(training_threads(cfg, which)):  # randomness stays in here
@@ -117,33 +128,3 @@ def _write(out: Path, model: VAE, history: list[dict], samples: dict[str, np.nda
     atomic_write_json(out / "history.json", history)
     atomic_write_json(out / "test.json", test)
     save_npz(out / "samples.npz", samples)
-
-
-def run(cfg: Config, run: Run) -> None:
-    """Runner ``repr``: train (or reuse) every model the config turns on; write the README's
-    ``metrics/repr_train.jsonl``, ``repr_test.json``, ``params.json``, ``architecture.json`` and
-    ``samples/{state,action}_reconstructions.npz`` into the run."""
-    rows, tests, modules, examples = [], {}, {}, {}
-    for which, loader in (("state", get_state_vae), ("action", get_action_vae)):
-        if model_config(cfg, which).kind != "vae":
-            continue
-        artifact = ensure_artifact(cfg, which)
-        model = loader(cfg).requires_grad_(True)  # counted as trained here, in the offline phase
-        rows += [{"model": which, **row} for row in read_json(artifact.path / "history.json")]
-        tests[which] = {**read_json(artifact.path / "test.json"), "artifact": str(artifact.path),
-                        "built_by_this_run": artifact.built}
-        run.write_bytes(f"samples/{which}_reconstructions.npz", (artifact.path / "samples.npz").read_bytes())
-        device = next(model.parameters()).device
-        x = torch.zeros(1, *model.image_shape) if which == "state" else torch.zeros(1, model.action_dim)
-        name = f"V_{which[0]}"  # V_s / V_a, as the paper and plls_bench.latent.latent_modules name them
-        modules[f"{name}.encoder"], examples[f"{name}.encoder"] = model.encoder, x.to(device)
-        modules[f"{name}.decoder"] = model.decoder
-        examples[f"{name}.decoder"] = torch.zeros(1, model.latent_dim, device=device)
-    run.write_bytes("metrics/repr_train.jsonl",
-                    "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
-    run.write_json("metrics/repr_test.json", tests)
-    run.write_json("metrics/params.json", parameter_counts(modules, trainable=modules))
-    run.write_json("metrics/architecture.json", architecture_summary(modules, examples))
-    for which, metrics in tests.items():
-        log.info("V_%s test MSE %.6g (mean predictor %.6g) from %s", which[0], metrics["test_mse"],
-                 metrics["mean_predictor_mse"], metrics["artifact"])

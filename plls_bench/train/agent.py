@@ -2,7 +2,7 @@
 parameter accounting, and loading a trained policy back from a run directory."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,18 +18,21 @@ from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
+from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import read_json
 from plls_bench.train.checkpoint import latest, normalization
 from plls_bench.train.networks import policy_kwargs
 from plls_bench.train.normalize import ObsMap, frozen_obs_map
 
 
-def build_vec_env(cfg: Config, n_envs: int, seed: int) -> VecEnv:
+def build_vec_env(cfg: Config, n_envs: int, seed: int, reprs: Representations | None = None) -> VecEnv:
     """``n_envs`` copies of the task, episode statistics recorded on the raw env (VecMonitor),
-    then V_s / V_a as configured (``wrap_latent``). Env i's first reset uses ``seed + i``."""
+    then the V_s / V_a of ``reprs`` (``wrap_latent``; None only for a config that uses neither).
+    Env i's first reset uses ``seed + i``."""
     assert cfg.algo.ppo is not None
+    reprs = (reprs or Representations()).check(cfg)  # before any env process starts
     venv = make_vec_env(cfg.env, n_envs, seed, subproc=cfg.algo.ppo.vec_env == "subproc" and n_envs > 1)
-    return wrap_latent(VecMonitor(venv), cfg)
+    return wrap_latent(VecMonitor(venv), reprs)
 
 
 def new_model(cfg: Config, venv: VecEnv) -> PPO:
@@ -56,12 +59,13 @@ def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str
 
 @dataclass(frozen=True)
 class Trained:
-    """A run's typed config, its last checkpointed PPO and the frozen observation normalisation
-    it was trained with (identity unless ``algo.ppo.normalize_obs``)."""
+    """A run's typed config, its last checkpointed PPO, the frozen observation normalisation
+    it was trained with (identity unless ``algo.ppo.normalize_obs``) and its V_s / V_a."""
 
     cfg: Config
     model: PPO
     normalize_obs: ObsMap
+    reprs: Representations
 
     def act(self, obs: np.ndarray, deterministic: bool = True) -> np.ndarray:
         """Actions for ``build_vec_env`` observations (normalised here, frozen, as in evaluation)."""
@@ -69,19 +73,21 @@ class Trained:
 
 
 def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
-    """The run's last checkpointed policy (the final one once the run is ``done``), on ``device``
-    (``auto``: the GPU when present). It acts on ``build_vec_env(cfg, ...)`` observations (latent
-    z with V_s) through :meth:`Trained.act`, which applies the saved VecNormalize statistics
-    frozen; its actions are what that env's ``step`` takes (latent e with V_a): roll it out through
-    ``build_vec_env`` or ``wrap_latent`` so the frozen V_s / V_a are applied as in training."""
+    """The run's last checkpointed policy (the final one once the run is ``done``) and its V_s /
+    V_a, on ``device`` (``auto``: the GPU when present). It acts on ``build_vec_env(cfg, n, seed,
+    trained.reprs)`` observations (latent z with V_s) through :meth:`Trained.act`, which applies the
+    saved VecNormalize statistics frozen; its actions are what that env's ``step`` takes (latent e
+    with V_a). Never trains: a missing V_s / V_a artifact raises ``MissingArtifact``."""
     record = read_json(Path(run_dir) / "config.json")
     if record is None:
         raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
     found = latest(Path(run_dir))
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
-    return Trained(config_from_dict(record["config"]), PPO.load(found[0], device=resolve_device(device)),
-                   frozen_obs_map(normalization(Path(run_dir))))
+    cfg = config_from_dict(record["config"])
+    model = PPO.load(found[0], device=resolve_device(device))
+    reprs = load_representations(replace(cfg, device=device))  # beside the policy, not on the recorded device
+    return Trained(cfg, model, frozen_obs_map(normalization(Path(run_dir))), reprs)
 
 
 def sb3_metrics(values: dict[str, Any]) -> dict[str, float]:

@@ -27,6 +27,7 @@ from plls_bench.envs import make_vec_env
 from plls_bench.evaluate import run_episodes
 from plls_bench.latent import wrap_latent
 from plls_bench.metrics import EvalRow, TrainRow
+from plls_bench.repr.store import Representations, ensure_representations
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 from plls_bench.train import loop
@@ -37,11 +38,12 @@ from plls_bench.train.loop import Progress
 log = logging.getLogger(__name__)
 
 
-def make_envs(cfg: Config, train_seed: int) -> tuple[VecEnv, VecEnv]:
+def make_envs(cfg: Config, train_seed: int, reprs: Representations) -> tuple[VecEnv, VecEnv]:
     """The training and evaluation VecEnvs (one env each), through the latent wrappers: with
     ``repr/action=vae`` the agent acts in V_a's latent box (PL-LS + DBC), else they are unchanged.
     The evaluation env is re-seeded at every evaluation."""
-    train, evaluation = (wrap_latent(make_vec_env(cfg.env, 1, seed), cfg) for seed in (train_seed, train_seed + 1))
+    reprs.check(cfg)
+    train, evaluation = (wrap_latent(make_vec_env(cfg.env, 1, seed), reprs) for seed in (train_seed, train_seed + 1))
     return train, evaluation
 
 
@@ -84,8 +86,10 @@ class DBCTrainer:
 
     unit = "step"
 
-    def __init__(self, cfg: Config, run: Run) -> None:
+    def __init__(self, cfg: Config, run: Run, reprs: Representations | None = None) -> None:
+        """``reprs``: V_s / V_a already loaded (the bench scripts); None: ``setup`` builds or loads them."""
         assert cfg.algo.dbc is not None
+        self.reprs = reprs
         self.cfg, self.run, self.dbc = cfg, run, cfg.algo.dbc
         self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
         self.iterations = math.ceil(cfg.budget.train_env_steps / cfg.env.action_repeat)
@@ -95,7 +99,8 @@ class DBCTrainer:
     def setup(self) -> None:
         cfg = self.cfg
         self.device = resolve_device(cfg.device)
-        self.train_env, self.eval_env = make_envs(cfg, self.seeds.train)
+        reprs = self.reprs or ensure_representations(cfg)  # V_a (PL-LS + DBC) built if missing, loaded once
+        self.train_env, self.eval_env = make_envs(cfg, self.seeds.train, reprs)
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))
         self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device)

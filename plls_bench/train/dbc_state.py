@@ -26,6 +26,9 @@ from plls_bench.artifacts import load_npz, save_npz
 from plls_bench.composition import config_from_dict
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
+from plls_bench.envs import make_vec_env
+from plls_bench.latent import wrap_latent
+from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import Run, read_json
 from plls_bench.train.loop import Progress
 
@@ -99,15 +102,13 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
     return progress
 
 
-def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBCAgent, Box]:
-    """A DBC run's typed config, its last checkpointed agent (no replay, no optimiser use) and the
-    box its actions map to (V_a's latent box with ``repr/action=vae``), for filmstrips.
+def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBCAgent, Box, Representations]:
+    """A DBC run's typed config, its last checkpointed agent (no replay, no optimiser use), the
+    box its actions map to (V_a's latent box with ``repr/action=vae``) and its V_a, for filmstrips.
 
     Everything lands on ``device`` (``auto``: a GPU when present), whatever device the run trained
-    on; the returned config says so (``cfg.device``), so V_s / V_a built from it land there too."""
-    from plls_bench.envs import make_vec_env
-    from plls_bench.latent import wrap_latent
-
+    on; the returned config says so (``cfg.device``). Never trains: a missing V_a artifact raises
+    ``MissingArtifact``. The task's env is made (not reset or rendered) only to read its spaces."""
     record = read_json(run_dir / "config.json")
     if record is None:
         raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
@@ -117,7 +118,8 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     target = resolve_device(device)  # refuses an absent GPU before any env is built
     cfg = replace(config_from_dict(record["config"]), device=device)  # the recorded one may be absent here
     assert cfg.algo.dbc is not None
-    venv = wrap_latent(make_vec_env(cfg.env, 1, 0), cfg)  # the spaces the agent saw in training
+    reprs = load_representations(cfg)
+    venv = wrap_latent(make_vec_env(cfg.env, 1, 0), reprs)  # the spaces the agent saw in training
     try:
         obs_shape, space = venv.observation_space.shape, venv.action_space
     finally:
@@ -125,4 +127,4 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target)
     state = torch.load(path, map_location=agent.device, weights_only=True)
     agent.load_state_dict(state["agent"])
-    return cfg, agent, space
+    return cfg, agent, space, reprs

@@ -20,10 +20,11 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv
 
 from plls_bench.config import Config
-from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.devices import resolve_device
 from plls_bench.evaluate import run_episodes
+from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
+from plls_bench.repr.store import ensure_representations
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds, sub_seed
 from plls_bench.train import checkpoint, loop, normalize
@@ -97,9 +98,10 @@ class PPOTrainer:
 
     def setup(self) -> None:
         cfg, ppo = self.cfg, self.ppo
-        self.train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, self.seeds.train), ppo)
+        reprs = ensure_representations(cfg)  # V_s / V_a built if missing, loaded once for both envs
+        self.train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, self.seeds.train, reprs), ppo)
         self.eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes),
-                                                            self.seeds.eval), ppo)
+                                                            self.seeds.eval, reprs), ppo)
 
     def restore(self) -> Progress | None:
         self.model, saved, fresh = _start_or_resume(self.cfg, self.run, self.train_env, self.seeds.train)
