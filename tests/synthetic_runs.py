@@ -37,14 +37,15 @@ PRESETS: dict[str, list[str]] = {
 
 
 @lru_cache(maxsize=None)
-def _compose(experiment: str, budget: str, runs_dir: str) -> Config:
-    cfg = compose([*PRESETS[experiment], f"budget={budget}", f"runs_dir={runs_dir}", "progress=false"])
+def _compose(experiment: str, budget: str, runs_dir: str, *overrides: str) -> Config:
+    cfg = compose([*PRESETS[experiment], f"budget={budget}", f"runs_dir={runs_dir}", "progress=false", *overrides])
     return dataclasses.replace(cfg, experiment=experiment)  # `experiment=` on a command line picks a preset
 
 
-def make_run(runs_dir: Path, experiment: str, seed: int, budget: str = "quick") -> tuple[Run, Config]:
+def make_run(runs_dir: Path, experiment: str, seed: int, budget: str = "quick",
+             *overrides: str) -> tuple[Run, Config]:
     """A prepared run dir (config.json, provenance.json, status running) for ``experiment``."""
-    cfg = dataclasses.replace(_compose(experiment, budget, str(runs_dir)), seed=seed)
+    cfg = dataclasses.replace(_compose(experiment, budget, str(runs_dir), *overrides), seed=seed)
     run = Run(run_dir_path(runs_dir, experiment, "default", seed))
     run.prepare(cfg, config_hash(cfg))
     run.write_status("running", config_hash=config_hash(cfg))
