@@ -21,6 +21,7 @@ import tempfile
 import time
 from datetime import date
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
 from plls_bench.plan import THROUGHPUT_FILE, list_presets  # noqa: E402
+from plls_bench.runner_specs import runner_spec  # noqa: E402
 from plls_bench.runs import atomic_write_json  # noqa: E402
 
 SECTION = "throughput"
@@ -104,17 +106,57 @@ def prepare_representations(cfg: Config) -> None:
         ensure_representations(cfg)
 
 
+def _collect(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
+    return [(collect_rate(cfg, args.collect_steps), "env steps/s")]
+
+
+def _repr(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
+    samples = {"state": args.state_samples, "action": args.action_samples}
+    models = [key.split("/")[0].removeprefix("repr_") for key in keys]  # repr_state/<env> -> state
+    return [(repr_rate(cfg, which, samples[which]), "samples/s") for which in models]
+
+
+def _study(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
+    return [(study_rate(cfg, args.runs), "runs/s")]
+
+
+def _ppo(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
+    horizon = [f"algo.ppo.n_steps={args.ppo_steps}"] if args.ppo_steps else []
+    prepare_representations(_config(cfg.experiment, args.budget, args.runs, *TINY_REPR, *horizon, *engine))
+    m = ppo_throughput.measure(cfg.experiment, args.budget, args.ppo_iterations, args.runs,
+                               [*TINY_REPR, *horizon, *engine])
+    return [(m["sps"], "env steps/s"), (m["rollout_sps"], "env steps/s")]  # eval: acting without updates
+
+
+def _dbc(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
+    prepare_representations(_config(cfg.experiment, args.budget, args.runs, *TINY_REPR, *engine))
+    m = dbc_throughput.measure(cfg.experiment, args.budget, 1, args.dbc_steps, args.dbc_updates, args.runs,
+                               [*TINY_REPR, *engine])
+    # one update per agent step, i.e. per action_repeat env steps
+    seconds_per_env_step = 1.0 / m["env_sps"] + m["update_s"] / cfg.env.action_repeat
+    return [(1.0 / seconds_per_env_step, "env steps/s"), (m["env_sps"], "env steps/s")]
+
+
+Measure = Callable[[Config, list[str], argparse.Namespace, tuple[str, ...]], list[tuple[float, str]]]
+# runner -> how its rates are measured (one value per rate key), and whether they are env-bound
+# (then measured per backend). A new runner adds its entry here (README, "Adding a runner").
+MEASURES: dict[str, tuple[Measure, bool]] = {
+    "collect": (_collect, True), "repr": (_repr, False), "study": (_study, False),
+    "ppo": (_ppo, True), "dbc": (_dbc, True),
+}
+
+
 def rate_keys(cfg: Config) -> list[str]:
     """The rate keys ``plls_bench.plan`` looks up for a preset (env-bound ones per backend)."""
-    env, preset = cfg.env.name, cfg.experiment
+    spec, env, preset = runner_spec(cfg.runner), cfg.env.name, cfg.experiment
     engine = "" if cfg.env.backend == "gymnasium" else f"@{cfg.env.backend}"
-    if cfg.runner == "collect":
+    if spec.trains_policy:
+        return [f"train/{preset}{engine}", f"eval/{preset}{engine}"]
+    if spec.costs_per_run:
+        return [f"{spec.name}/{preset}"]
+    if MEASURES[spec.name][1]:  # collection
         return [f"collect/{env}{engine}"]
-    if cfg.runner == "repr":
-        return [f"repr_{w}/{env}" for w in ("state", "action") if getattr(cfg.repr, w).kind == "vae"]
-    if cfg.runner == "study":
-        return [f"study/{preset}"]
-    return [f"train/{preset}{engine}", f"eval/{preset}{engine}"]
+    return [f"repr_{w}/{env}" for w in ("state", "action") if getattr(cfg.repr, w).kind == "vae"]
 
 
 def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float, str]]:
@@ -122,38 +164,14 @@ def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float
     engine = (f"env.backend={args.backend}",)  # explicit: a profile may choose another backend
     if args.backend != "gymnasium":
         base = _config(preset, args.budget, args.runs)
-        # envpool's tasks only; representation training and studies do not step the env
-        if base.env.gym_id not in ENVPOOL_GYM_IDS or base.runner not in ("collect", "ppo"):
-            return {}
+        if base.env.gym_id not in ENVPOOL_GYM_IDS or not MEASURES[base.runner][1]:
+            return {}  # envpool's tasks only, and only work that steps the env
     cfg = _config(preset, args.budget, args.runs, *engine)
     keys = rate_keys(cfg)
     if args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in keys):
         return {}
-    rates: dict[str, tuple[float, str]] = {}
-    if cfg.runner == "collect":
-        rates[keys[0]] = (collect_rate(cfg, args.collect_steps), "env steps/s")
-    elif cfg.runner == "repr":
-        for which, samples in (("state", args.state_samples), ("action", args.action_samples)):
-            if getattr(cfg.repr, which).kind == "vae":
-                rates[f"repr_{which}/{cfg.env.name}"] = (repr_rate(cfg, which, samples), "samples/s")
-    elif cfg.runner == "study":
-        rates[f"study/{preset}"] = (study_rate(cfg, args.runs), "runs/s")
-    elif cfg.runner == "ppo":
-        horizon = [f"algo.ppo.n_steps={args.ppo_steps}"] if args.ppo_steps else []
-        prepare_representations(_config(preset, args.budget, args.runs, *TINY_REPR, *horizon, *engine))
-        m = ppo_throughput.measure(preset, args.budget, args.ppo_iterations, args.runs,
-                                   [*TINY_REPR, *horizon, *engine])
-        rates[keys[0]] = (m["sps"], "env steps/s")
-        rates[keys[1]] = (m["rollout_sps"], "env steps/s")  # acting without updates
-    elif cfg.runner == "dbc":
-        prepare_representations(_config(preset, args.budget, args.runs, *TINY_REPR, *engine))
-        m = dbc_throughput.measure(preset, args.budget, 1, args.dbc_steps, args.dbc_updates, args.runs,
-                                   [*TINY_REPR, *engine])
-        # one update per agent step, i.e. per action_repeat env steps
-        seconds_per_env_step = 1.0 / m["env_sps"] + m["update_s"] / cfg.env.action_repeat
-        rates[keys[0]] = (1.0 / seconds_per_env_step, "env steps/s")
-        rates[keys[1]] = (m["env_sps"], "env steps/s")
-    return rates
+    measure, _ = MEASURES[cfg.runner]
+    return dict(zip(keys, measure(cfg, keys, args, engine)))
 
 
 def merged(rates: dict[str, tuple[float, str]], command: str, host: str) -> dict:
