@@ -59,15 +59,19 @@ def _budget(runs: Runs, *names: str, n: list[int] | None = None) -> str:
 
 
 def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Mean test MSE over distinct trained models (trials sharing an artifact count once)."""
-    exp, model = runs.experiment(claim["experiment"]), claim["param"]
+    """Mean test MSE over distinct trained models (trials sharing an artifact count once).
+    ``param`` is ``model`` (z sampled, ``test_mse``) or ``model:field`` (e.g. the decode(mu)
+    reading, ``action:test_mse_posterior_mean``)."""
+    exp = runs.experiment(claim["experiment"])
+    model, _, field = claim["param"].partition(":")
+    field = field or "test_mse"
     values: dict[str, float] = {}
     for trial in exp.trials:
         entry = (runs.json(exp, trial, "metrics/repr_test.json") or {}).get(model)
-        if isinstance(entry, dict) and isinstance(entry.get("test_mse"), (int, float)):
-            values.setdefault(str(entry.get("artifact", trial.seed)), float(entry["test_mse"]))
+        if isinstance(entry, dict) and isinstance(entry.get(field), (int, float)):
+            values.setdefault(str(entry.get("artifact", trial.seed)), float(entry[field]))
     if not values:
-        raise NotJudged(f"no test MSE of model {model} in {exp.name}")
+        raise NotJudged(f"no {field} of model {model} in {exp.name}")
     return _mean_estimate(list(values.values()), "model", _budget(runs, exp.name))
 
 
