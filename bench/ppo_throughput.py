@@ -2,6 +2,7 @@
 
     .venv/bin/python bench/ppo_throughput.py                       # both MountainCar methods
     .venv/bin/python bench/ppo_throughput.py --presets carracing_ppo carracing_plls_ppo --iterations 2
+    .venv/bin/python bench/ppo_throughput.py --presets carracing_plls_ppo carracing_ppo_vs --backends gymnasium envpool
 
 Each preset's training vector env and SB3 model are built exactly as the ``ppo`` runner builds
 them (``budget=quick``: the paper's Table 1 / Table 2 PPO settings) from V_s / V_a artifacts that
@@ -24,7 +25,9 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
+from plls_bench.config.tasks import ENV_BACKENDS  # noqa: E402
 from plls_bench.repr.store import load_representations  # noqa: E402
 from plls_bench.seeding import derive_seeds, seed_everything  # noqa: E402
 from plls_bench.train.agent import build_vec_env, new_model  # noqa: E402
@@ -69,13 +72,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", default="quick", help="budget whose PPO settings are used")
     parser.add_argument("--iterations", type=int, default=3, help="timed PPO iterations per preset")
     parser.add_argument("--runs", default="results/runs", help="runs_dir (V_s / V_a artifacts are reused)")
+    parser.add_argument("--tiny-repr", action="store_true",
+                        help="a tiny V_s / V_a (built first, visibly): weights do not change the speed")
+    parser.add_argument("--backends", nargs="+", default=None, choices=ENV_BACKENDS,
+                        help="measure each preset on these env.backend values (default: the profile's)")
     parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
     args = parser.parse_args(argv)
     command = announce("ppo_throughput.py", argv)
     rows = []
-    for preset in args.presets:
-        m = measure(preset, args.budget, args.iterations, args.runs)
-        rows.append(f"| `{preset}` | {m['steps']} | {m['rollout_s']:.2f} | {m['update_s']:.2f} | "
+    for preset, backend in [(p, b) for p in args.presets for b in (args.backends or [None])]:
+        overrides = [*(TINY_REPR if args.tiny_repr else ()), *([f"env.backend={backend}"] if backend else [])]
+        if args.tiny_repr:
+            prepare_representations(compose([f"+experiment={preset}", f"budget={args.budget}",
+                                             f"runs_dir={args.runs}", "progress=false", *overrides]))
+        m = measure(preset, args.budget, args.iterations, args.runs, overrides)
+        label = f"`{preset}`" + (f" ({backend})" if backend else "")
+        rows.append(f"| {label} | {m['steps']} | {m['rollout_s']:.2f} | {m['update_s']:.2f} | "
                     f"{m['rollout_sps']:.0f} | **{m['sps']:.0f}** | {m['cpu_s']:.2f} | {m['cpu_sps']:.0f} | "
                     f"{m['threads']} |")
         print(rows[-1], flush=True)

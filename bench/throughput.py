@@ -30,6 +30,7 @@ sys.path.insert(0, str(REPO))
 
 from bench import dbc_throughput, ppo_throughput  # noqa: E402
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
@@ -88,22 +89,6 @@ def study_rate(cfg: Config, runs_dir: str) -> float:
         start = time.perf_counter()
         execute(cfg, Path(tmp) / "study")
         return 1.0 / (time.perf_counter() - start)
-
-
-# Representations in the RL presets come from a tiny dataset and one epoch: their weights do not
-# change the speed of acting or updating, and a quick-budget V_s would take longer than the bench.
-TINY_REPR = ("budget.data_episodes=2", "budget.data_steps_per_episode=100", "budget.repr_epochs=1",
-             "budget.repr_action_epochs=1")
-
-
-def prepare_representations(cfg: Config) -> None:
-    """This script's one training step, before any timing: build (or reuse) the V_s / V_a that
-    ``cfg`` uses, so the measurements below load them and never train."""
-    from plls_bench.repr.store import ensure_representations
-
-    if "vae" in (cfg.repr.state.kind, cfg.repr.action.kind):
-        print(f"building (or reusing) the representations of {cfg.experiment} under {cfg.runs_dir}", flush=True)
-        ensure_representations(cfg)
 
 
 def _collect(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
