@@ -37,8 +37,11 @@ HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
 HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
     "algo.ppo.use_sde": False, "algo.ppo.sde_sample_freq": 0,
     "algo.ppo.normalize_obs": False, "algo.ppo.normalize_reward": False,
-    "env.backend": "gymnasium", "env.backend_threads": 0,
+    "env.backend": "gymnasium",
 }
+# Nested keys that change speed, never results (envpool steps each env on its own random stream,
+# whichever thread runs it): always left out of the hash, as torch_threads is.
+HASH_EXCLUDED_NESTED = ("env.backend_threads",)
 # Config keys hashed at a fixed value, whatever the config says. ``device`` changes where a run
 # computes, not what it computes statistically (CPU and GPU kernels differ in rounding only), so it
 # must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
@@ -136,16 +139,17 @@ def stable_hash(obj: Any, length: int = 16) -> str:
 
 
 def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLUDED_KEYS) -> dict[str, Any]:
-    """What identifies a config: less the ``excluded`` top-level keys, :data:`HASH_PINNED_KEYS`
-    at their pinned values and the keys of :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values
-    left out."""
+    """What identifies a config: less the ``excluded`` top-level keys and
+    :data:`HASH_EXCLUDED_NESTED`, :data:`HASH_PINNED_KEYS` at their pinned values and the keys of
+    :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values left out."""
     data = copy.deepcopy({k: HASH_PINNED_KEYS.get(k, v) for k, v in config.items() if k not in excluded})
-    for dotted, neutral in HASH_NEUTRAL_DEFAULTS.items():
+    drops = [*HASH_NEUTRAL_DEFAULTS.items(), *((dotted, None) for dotted in HASH_EXCLUDED_NESTED)]
+    for dotted, neutral in drops:
         *parents, leaf = dotted.split(".")
         node: Any = data
         for part in parents:
             node = node.get(part) if isinstance(node, dict) else None
-        if isinstance(node, dict) and leaf in node and node[leaf] == neutral:
+        if isinstance(node, dict) and leaf in node and (dotted in HASH_EXCLUDED_NESTED or node[leaf] == neutral):
             del node[leaf]
     return data
 

@@ -119,6 +119,7 @@ def test_backend_separates_hashes_keys_and_run_dirs(runs_dir: Path) -> None:
     assert "backend" not in dataset_key(gym_cfg)["env"], "old artifacts keep their keys"
     threads = compose_preset("carracing_data", runs_dir, "env.backend=envpool", "env.backend_threads=2")
     assert dataset_key(threads) == dataset_key(pool_cfg), "threads change speed, not data"
+    assert config_hash(threads) == config_hash(pool_cfg)
     assert variant_name("auto", "", "envpool") == "env.backend=envpool"
     assert variant_name("auto", "env.backend=envpool", "envpool") == "env.backend=envpool"
     assert variant_name("auto", "seed=1", "gymnasium") == "seed=1"
