@@ -21,8 +21,9 @@ uint8 for stored data (as :class:`plls_bench.envs.carracing.ChannelsFirst` does 
 """
 from __future__ import annotations
 
+import contextlib
 import warnings
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -35,15 +36,33 @@ ENVPOOL_TASKS: dict[str, str] = {
 }
 
 
+@contextlib.contextmanager
+def _quiet_spaces() -> Iterator[None]:
+    """envpool builds its Box spaces from float64 bounds, at every pool and space access; gymnasium
+    warns each time. Silenced here only, for that message."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*precision lowered by casting to float32", category=UserWarning)
+        yield
+
+
 def _make_pool(task_id: str, n_envs: int, seeds: Sequence[int], max_episode_steps: int,
                num_threads: int) -> Any:
     import envpool  # lazy: the C++ engine is only loaded when a config asks for it
 
-    with warnings.catch_warnings():  # envpool builds its Box spaces from float64 bounds, per pool
-        warnings.filterwarnings("ignore", message=".*precision lowered by casting to float32", category=UserWarning)
+    with _quiet_spaces():
         return envpool.make(task_id, env_type="gymnasium", num_envs=n_envs, batch_size=n_envs,
                             num_threads=num_threads, env_seed=[int(s) % 2**31 for s in seeds],
                             max_episode_steps=max_episode_steps)
+
+
+def _spaces(task_id: str, max_episode_steps: int) -> tuple[gym.spaces.Box, gym.spaces.Box]:
+    """One env's observation and action spaces (from a one-env pool)."""
+    probe = _make_pool(task_id, 1, [0], max_episode_steps, 1)
+    try:
+        with _quiet_spaces():
+            return probe.observation_space, probe.action_space
+    finally:
+        probe.close()
 
 
 class _Layout:
@@ -57,7 +76,7 @@ class _Layout:
             self.space = (gym.spaces.Box(0.0, 1.0, (c, h, w), np.float32) if as_float
                           else gym.spaces.Box(0, 255, (c, h, w), np.uint8))
         else:
-            self.space = gym.spaces.Box(space.low, space.high, space.shape, np.float32)
+            self.space = gym.spaces.Box(space.low.astype(np.float32), space.high.astype(np.float32), space.shape, np.float32)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """``(n, *envpool shape)`` -> ``(n, *self.space.shape)``."""
@@ -80,13 +99,11 @@ class EnvpoolVecEnv(VecEnv):
                  seed: int = 0, as_float: bool = True) -> None:
         self.task_id, self.max_episode_steps, self.num_threads = task_id, max_episode_steps, num_threads
         self._seed, self._pool, self._actions = seed, None, None
-        probe = _make_pool(task_id, 1, [0], max_episode_steps, 1)
-        self._layout = _Layout(probe.observation_space, as_float)  # envpool's spaces are per env
-        action_space = probe.action_space
-        probe.close()
+        observation_space, action_space = _spaces(task_id, max_episode_steps)  # envpool's spaces are per env
+        self._layout = _Layout(observation_space, as_float)
         self._low, self._high = action_space.low, action_space.high
-        super().__init__(n_envs, self._layout.space,
-                         gym.spaces.Box(action_space.low, action_space.high, action_space.shape, np.float32))
+        super().__init__(n_envs, self._layout.space, gym.spaces.Box(
+            self._low.astype(np.float32), self._high.astype(np.float32), action_space.shape, np.float32))
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
         """Env i of the next ``reset()`` is seeded ``seed + i`` (a new pool is built then)."""
@@ -155,10 +172,8 @@ class EnvpoolDataEnvs:
     def __init__(self, task_id: str, n_envs: int, max_episode_steps: int, num_threads: int = 0) -> None:
         self.task_id, self.num_envs, self.max_episode_steps = task_id, n_envs, max_episode_steps
         self.num_threads, self._pool = num_threads, None
-        probe = _make_pool(task_id, 1, [0], max_episode_steps, 1)
-        self._layout = _Layout(probe.observation_space, as_float=False)
-        self.single_action_space = probe.action_space
-        probe.close()
+        observation_space, self.single_action_space = _spaces(task_id, max_episode_steps)
+        self._layout = _Layout(observation_space, as_float=False)
 
     def reset(self, seed: Sequence[int]) -> tuple[np.ndarray, dict[str, Any]]:
         self.close()
