@@ -165,3 +165,25 @@ def test_two_sample_statistics_match_scipy() -> None:
     assert t["welch_p"] == pytest.approx(stats.ttest_ind(b, a, equal_var=False).pvalue)
     assert t["diff_ci_low"] < t["diff"] < t["diff_ci_high"]
     assert two_sample(np.full(5, 1000.0), np.full(5, 1000.0))["welch_p"] == 1.0
+
+
+def test_collector_reads_a_profiles_envpool_runs_as_the_presets_runs(tmp_path: Path) -> None:
+    """A profile that runs CarRacing on envpool writes ``<experiment>/env.backend=envpool/``; the
+    collector reads those as the preset's runs, and a smoke run in ``default`` does not displace them."""
+    import shutil
+
+    from plls_bench.report.load import Runs
+    from tests.synthetic_runs import finish, make_run, write_repr
+
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        run, cfg = make_run(runs, "carracing_va", seed, "quick")
+        write_repr(run, "action", 3, 0.001, f"model{seed}")
+        finish(run, cfg)
+    shutil.move(str(runs / "carracing_va" / "default"), str(runs / "carracing_va" / "env.backend=envpool"))
+    run, cfg = make_run(runs, "carracing_va", 0, "smoke")
+    write_repr(run, "action", 1, 0.5, "smoke")
+    finish(run, cfg)
+    exp = Runs(runs).experiment("carracing_va")
+    assert [(t.seed, t.cfg("budget.name"), t.path.parent.name) for t in exp.trials] == [
+        (0, "quick", "env.backend=envpool"), (1, "quick", "env.backend=envpool")]

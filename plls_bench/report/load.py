@@ -25,6 +25,9 @@ from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PIN
                              read_json, scan_jsonl, stable_hash)
 
 DEFAULT_VARIANT = "default"
+# A profile's own runs of a preset live in ``default``, or in ``env.backend=<b>`` when the profile
+# runs the task on another simulator engine (runs.variant_name): both are the preset's default runs.
+DEFAULT_VARIANTS = (DEFAULT_VARIANT, "env.backend=envpool")
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
 
 
@@ -107,9 +110,10 @@ class Runs:
 
     def _scan(self, name: str, variant: str) -> Experiment:
         exp = Experiment(name, variant)
-        roots = [(self.root / name / variant, "run")]
+        variants = DEFAULT_VARIANTS if variant == DEFAULT_VARIANT else (variant,)
+        roots = [(self.root / name / v, "run") for v in variants]
         if self.records_root is not None:
-            roots.append((self.records_root / name / variant, "record"))
+            roots += [(self.records_root / name / v, "record") for v in variants]
         if not any(root.is_dir() for root, _ in roots):
             self.gap(exp, None, f"no runs (expected {roots[0][0]})")
             return exp
