@@ -141,3 +141,15 @@ def test_number_formats_and_latex_escaping() -> None:
     table = Table("T", "cap", ["a", "b|c"], [["1", "2"]])
     assert table.markdown().splitlines()[2] == "| a | b\\|c |"
     assert r"\begin{tabular}{|l|c|}" in table.latex("t") and table.csv() == "a,b|c\n1,2\n"
+
+
+def test_plateau_epoch_is_the_first_epoch_changing_less_than_1_percent_over_3() -> None:
+    import numpy as np
+
+    from plls_bench.report.fig_curves import plateau_epoch
+
+    losses = np.array([100.0, 50, 30, 20, 19.9, 19.8, 19.7, 19.69])  # epochs 1..8
+    # index 6: |19.7 - 20| = 0.3 > 0.2; index 7: |19.69 - 19.9| = 0.21 > 0.199: still changing
+    assert plateau_epoch(losses) is None
+    assert plateau_epoch(np.append(losses, 19.65)) == 8  # |19.65 - 19.8| = 0.15 < 0.198
+    assert plateau_epoch(np.array([1.0, 1.0])) is None  # fewer than window + 1 epochs

@@ -57,6 +57,16 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
 
 
 # --------------------------------------------------------------------------- losses
+def plateau_epoch(values: np.ndarray, rel: float = 0.01, window: int = 3) -> int | None:
+    """First index e (0-based) at which ``values`` ``(E,)`` (a loss per epoch) changed by less than
+    ``rel`` of itself over the last ``window`` epochs: |v[e] - v[e - window]| < rel * |v[e - window]|.
+    None while it still changes that much (the convergence rule of the suite's V_s budget)."""
+    for e in range(window, len(values)):
+        if abs(values[e] - values[e - window]) < rel * abs(values[e - window]):
+            return e
+    return None
+
+
 def loss_curves(runs: Runs, entry: Entry, opts: Options, *, model: str, metric: str) -> Output:
     """``train_<metric>`` (blue) and ``val_<metric>`` (red) per epoch of the ``model``
     (``state``/``action``) rows of ``metrics/repr_train.jsonl``. Trials sharing one trained
@@ -77,6 +87,10 @@ def loss_curves(runs: Runs, entry: Entry, opts: Options, *, model: str, metric: 
     trials = {source.label: len(distinct)}
     if not distinct:
         return empty_output(runs, entry, title)
+    plateaus = [plateau_epoch(c[2]) for c in distinct.values()]
+    title += "; validation loss " + ", ".join(
+        "still changing > 1% over 3 epochs" if p is None else f"within 1% over 3 epochs from epoch {p + 1}"
+        for p in plateaus)
     fig = new_figure(entry.size)
     ax = fig.add_subplot()
     frames = []
