@@ -34,7 +34,7 @@ from bench.representations import TINY_REPR, prepare_representations  # noqa: E4
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
-from plls_bench.plan import THROUGHPUT_FILE, list_presets  # noqa: E402
+from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_suffix  # noqa: E402
 from plls_bench.runner_specs import runner_spec  # noqa: E402
 from plls_bench.runs import atomic_write_json  # noqa: E402
 
@@ -134,7 +134,7 @@ MEASURES: dict[str, tuple[Measure, bool]] = {
 def rate_keys(cfg: Config) -> list[str]:
     """The rate keys ``plls_bench.plan`` looks up for a preset (env-bound ones per backend)."""
     spec, env, preset = runner_spec(cfg.runner), cfg.env.name, cfg.experiment
-    engine = "" if cfg.env.backend == "gymnasium" else f"@{cfg.env.backend}"
+    engine = rate_suffix(cfg)
     if spec.trains_policy:
         return [f"train/{preset}{engine}", f"eval/{preset}{engine}"]
     if spec.costs_per_run:

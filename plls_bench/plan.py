@@ -21,7 +21,7 @@ from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
-from plls_bench.runs import Run, config_hash, run_dir_path, stable_hash, variant_name
+from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, stable_hash, variant_name
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
 
@@ -124,7 +124,7 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
 
     env, budget, work, spec = cfg.env.name, cfg.budget, [], runner_spec(cfg.runner)
-    engine = "" if cfg.env.backend == "gymnasium" else f"@{cfg.env.backend}"  # env-bound rates differ per backend
+    engine = rate_suffix(cfg)
     needs_data = spec.uses_dataset or "vae" in (cfg.repr.state.kind, cfg.repr.action.kind)
     data_steps = budget.data_episodes * budget.data_steps_per_episode
     if needs_data and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
@@ -140,6 +140,11 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     if spec.costs_per_run:
         work.append((f"{spec.name}/{cfg.experiment}", 1))
     return work
+
+
+def rate_suffix(cfg: Config) -> str:
+    """Env-bound rate keys (collection, training, evaluation) per backend: ``train/<preset>@envpool``."""
+    return f"@{cfg.env.backend}" if backend_tag(cfg.env.backend) else ""
 
 
 def _eval_env_steps(cfg: Config) -> int:

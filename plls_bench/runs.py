@@ -143,13 +143,13 @@ def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLU
     :data:`HASH_EXCLUDED_NESTED`, :data:`HASH_PINNED_KEYS` at their pinned values and the keys of
     :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values left out."""
     data = copy.deepcopy({k: HASH_PINNED_KEYS.get(k, v) for k, v in config.items() if k not in excluded})
-    drops = [*HASH_NEUTRAL_DEFAULTS.items(), *((dotted, None) for dotted in HASH_EXCLUDED_NESTED)]
-    for dotted, neutral in drops:
+    for dotted in (*HASH_NEUTRAL_DEFAULTS, *HASH_EXCLUDED_NESTED):
         *parents, leaf = dotted.split(".")
         node: Any = data
         for part in parents:
             node = node.get(part) if isinstance(node, dict) else None
-        if isinstance(node, dict) and leaf in node and (dotted in HASH_EXCLUDED_NESTED or node[leaf] == neutral):
+        if isinstance(node, dict) and leaf in node and (
+                dotted in HASH_EXCLUDED_NESTED or node[leaf] == HASH_NEUTRAL_DEFAULTS[dotted]):
             del node[leaf]
     return data
 
@@ -163,6 +163,12 @@ def config_hash(cfg: Any) -> str:
 _SAFE = re.compile(r"[^A-Za-z0-9_.,=+-]")
 
 
+def backend_tag(backend: str) -> str:
+    """How a non-default env backend names itself in run-dir variants and rate keys (empty for
+    gymnasium, the engine runs had before the key existed)."""
+    return "" if backend == "gymnasium" else f"env.backend={backend}"
+
+
 def variant_name(variant: str, override_dirname: str = "", backend: str = "gymnasium") -> str:
     """The run dir's variant part: an explicit ``variant``, else the overrides, else ``default``.
 
@@ -171,8 +177,8 @@ def variant_name(variant: str, override_dirname: str = "", backend: str = "gymna
     if variant and variant != "auto":
         return variant
     name = _SAFE.sub("_", override_dirname.replace("/", "."))
-    tag = f"env.backend={backend}"
-    if backend != "gymnasium" and tag not in name.split(","):
+    tag = backend_tag(backend)
+    if tag and tag not in name.split(","):
         name = f"{name},{tag}" if name else tag
     return name[:120] or "default"
 

@@ -21,13 +21,14 @@ from typing import Any
 import numpy as np
 
 from plls_bench.config.learning import BUDGET_NAMES
+from plls_bench.config.tasks import ENV_BACKENDS
 from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
-                             read_json, scan_jsonl, stable_hash)
+                             read_json, scan_jsonl, stable_hash, variant_name)
 
 DEFAULT_VARIANT = "default"
 # A profile's own runs of a preset live in ``default``, or in ``env.backend=<b>`` when the profile
 # runs the task on another simulator engine (runs.variant_name): both are the preset's default runs.
-DEFAULT_VARIANTS = (DEFAULT_VARIANT, "env.backend=envpool")
+DEFAULT_VARIANTS = tuple(variant_name("auto", "", backend) for backend in ENV_BACKENDS)
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
 
 
