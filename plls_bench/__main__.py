@@ -1,9 +1,10 @@
 """``python -m plls_bench +experiment=NAME [overrides]`` (``-m`` for multiruns).
 
 The command line is composed and validated first, so a wrong value exits with one message naming
-the key, before Hydra creates a run directory and before any compute. That includes asking for a
-device this machine lacks (``device=cuda`` without a GPU): config validation cannot check that,
-since it also runs when recorded configs are read back on other machines.
+the key, before Hydra creates a run directory and before any compute. That includes a ``runs_dir``
+this process cannot create or write, and asking for a device this machine lacks (``device=cuda``
+without a GPU): config validation cannot check either, since it also runs when recorded configs
+are read back on other machines.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from omegaconf import DictConfig
 
 from plls_bench.composition import CONF_DIR, compose, expand_sweeps, register
 from plls_bench.config import ConfigError, to_config
+from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import require_device
 
 register()
@@ -37,6 +39,7 @@ def validate_command_line(argv: list[str]) -> None:
     here = not args.multirun or _launcher(args.overrides) in _LOCAL_LAUNCHERS
     for overrides in jobs:
         cfg = compose(overrides, config_name=args.config_name or "config")
+        check_writable_dir(cfg.runs_dir, "runs_dir")  # Hydra creates run dirs under it right away
         if here:
             require_device(cfg.device)
 

@@ -17,11 +17,15 @@ from pathlib import Path
 from plls_bench.composition import CONF_DIR, filmstrip_config
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError, FilmstripConfig
 from plls_bench.config.analysis import filmstrip_hash
+from plls_bench.config.checks import check_writable_dir
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json
 
 LAUNCHERS = ("local", "joblib", "slurm")
+# Smoke numbers check the pipeline, not the paper: the committed results/ is written only from
+# records or runs of a real profile, and a smoke run's collector writes a git-ignored folder.
+RESULTS_OUT, SMOKE_OUT = "results", "results/smoke"
 EXIT_INTERRUPTED = 130
 
 
@@ -160,7 +164,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--only", nargs="+", metavar="PRESET",
                         help="run only these presets (names or globs, e.g. 'mountaincar_*')")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
-    parser.add_argument("--out", default="results", help="where the results collector writes tables and figures")
+    parser.add_argument("--out", default=None,
+                        help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
+                             f"--profile smoke, git-ignored; else {RESULTS_OUT}, the committed results)")
     parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
     parser.add_argument("--dry-run", action="store_true", help="print the plan and its estimated cost, run nothing")
     args = parser.parse_args(argv)
@@ -169,12 +175,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
     if bad:
         parser.error(f"--hydra takes hydra.* KEY=VALUE settings, got {', '.join(bad)}")
+    if args.out is None:
+        args.out = SMOKE_OUT if args.profile == "smoke" else RESULTS_OUT
     return args
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     try:
+        check_writable_dir(args.runs, "--runs")  # before any launch: a job could not even log its failure
+        if not args.no_report:
+            check_writable_dir(args.out, "--out")
         plans = plan_profile(args.profile, args.runs, args.only)
     except ConfigError as err:
         print(f"reproduce: {err}", file=sys.stderr)

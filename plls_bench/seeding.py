@@ -6,9 +6,14 @@ from ``data_seed`` unless ``repr.per_trial`` asks for one per trial.
 from __future__ import annotations
 
 import random
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import torch
 
 # Spawn keys name the streams, so adding a stream later never shifts the existing ones.
 _DATA, _TRAIN, _EVAL = 0, 1, 2
@@ -44,6 +49,21 @@ def seed_everything(seed: int) -> None:
     except ImportError:
         return
     torch.manual_seed(seed)
+
+
+@contextmanager
+def quiet_rng(device: str | torch.device = "cpu") -> Iterator[None]:
+    """Run the block on a fork of torch's global RNG, restored on exit: building a module only to
+    load weights into it (V_s, V_a, a trained policy) draws its throw-away initial weights here,
+    so how often anything was loaded never shifts the training stream seeded by the runner.
+    ``device`` adds its CUDA generator to the fork when it is a GPU; the CPU one is always forked."""
+    import torch
+
+    where = torch.device(device)
+    cuda = where.type == "cuda" and torch.cuda.is_available()
+    devices = [where.index if where.index is not None else torch.cuda.current_device()] if cuda else []
+    with torch.random.fork_rng(devices=devices):
+        yield
 
 
 def sub_seed(seed: int, *key: int) -> int:

@@ -34,6 +34,27 @@ def one_torch_thread():
     torch.set_num_threads(threads)
 
 
+UNWRITABLE = ("under_a_file", "read_only")
+
+
+def unwritable_path(kind: str, tmp_path: Path) -> Path:
+    """A directory path this process cannot create: ``under_a_file`` (a regular file in the way)
+    or ``read_only`` (inside a directory it may not write). As root, which CI and this machine's
+    tests run as, mode bits do not stop writes (a chmod-0555 dir is writable), so the read-only case
+    uses a read-only mount (``/proc/sys`` in a container), and is skipped where there is none."""
+    if kind == "under_a_file":
+        (tmp_path / "a_file").write_text("")
+        return tmp_path / "a_file" / "runs"
+    if os.geteuid() != 0:
+        locked = tmp_path / "read_only"
+        locked.mkdir(mode=0o555)
+        return locked / "runs"
+    for mount in (Path("/proc/sys"), Path("/sys")):
+        if mount.is_dir() and not os.access(mount, os.W_OK | os.X_OK):
+            return mount / "plls-runs"
+    pytest.skip("running as root with no read-only mount (/proc/sys, /sys) to stand for a read-only dir")
+
+
 def compose_preset(experiment: str | None, runs_dir: Path, *overrides: str) -> Config:
     """The shipped preset at smoke budget (unless overridden), writing under ``runs_dir``."""
     base = [f"+experiment={experiment}"] if experiment else []

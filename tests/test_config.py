@@ -7,7 +7,7 @@ import pytest
 
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError
-from tests.conftest import EXPERIMENTS, run_cli
+from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path
 
 
 def overrides_for(yaml_path: Path) -> list[str]:
@@ -155,6 +155,18 @@ def test_bad_value_in_one_job_of_a_multirun_is_refused(tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     done = run_cli("-m", "+experiment=mountaincar_data", f"runs_dir={runs}", "seed=0,-1")
     assert done.returncode == 2 and "seed" in done.stderr
+    assert not runs.exists()
+
+
+@pytest.mark.parametrize("kind", UNWRITABLE)
+def test_a_runs_dir_that_cannot_be_written_is_refused_in_one_line(kind: str, tmp_path: Path) -> None:
+    runs = unwritable_path(kind, tmp_path)
+    for multirun in ([], ["-m"]):
+        done = run_cli(*multirun, "+experiment=mountaincar_data", f"runs_dir={runs}")
+        assert done.returncode == 2, done.stdout + done.stderr
+        assert done.stderr.strip().splitlines() == [f"plls_bench: invalid config: runs_dir: cannot create or write "
+                                                    f"{runs}: {runs.parent} is not "
+                                                    f"{'a directory' if kind == 'under_a_file' else 'writable'}"]
     assert not runs.exists()
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from plls_bench.plan import list_presets, plan_profile
 from plls_bench.runner import execute
-from tests.conftest import REPO_ROOT, compose_preset
+from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path
 
 MC = ["mountaincar_data", "mountaincar_va", "mountaincar_ppo"]
 
@@ -72,6 +72,53 @@ def test_unknown_preset_is_refused_before_anything_runs(tmp_path: Path) -> None:
     done = reproduce("--profile", "smoke", "--only", "nope", "--runs", str(tmp_path / "r"))
     assert done.returncode == 2 and "nope" in done.stderr
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("kind", UNWRITABLE)
+@pytest.mark.parametrize("option", ["--runs", "--out"])
+def test_a_path_that_cannot_be_written_is_refused_before_any_launch(option: str, kind: str, tmp_path: Path) -> None:
+    bad, runs = unwritable_path(kind, tmp_path), tmp_path / "runs"
+    paths = {"--runs": str(runs), "--out": str(tmp_path / "out"), option: str(bad)}
+    done = reproduce("--profile", "smoke", "--only", "mountaincar_data", *(x for kv in paths.items() for x in kv))
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert done.stderr.strip().splitlines() == [f"reproduce: {option}: cannot create or write {bad}: {bad.parent} "
+                                                f"is not {'a directory' if kind == 'under_a_file' else 'writable'}"]
+    assert done.stdout == "" and not runs.exists() and not (tmp_path / "out").exists(), "nothing planned or run"
+
+
+def clone_of_this_tree(dest: Path) -> Path:
+    """A fresh git clone of this checkout with its uncommitted changes committed on top, so the
+    clone runs exactly the code under test; ``.venv`` is linked, as a worktree links it."""
+    git = ["git", "-c", "user.name=test", "-c", "user.email=test@localhost"]
+    subprocess.run([*git, "clone", "-q", str(REPO_ROOT), str(dest)], check=True)
+    listed = subprocess.run(["git", "-C", str(REPO_ROOT), "ls-files", "-z", "--modified", "--deleted", "--others",
+                             "--exclude-standard"], check=True, capture_output=True, text=True).stdout
+    for name in filter(None, set(listed.split("\0"))):
+        source, target = REPO_ROOT / name, dest / name
+        if source.is_file():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(source.read_bytes())
+        else:
+            target.unlink(missing_ok=True)
+    subprocess.run([*git, "-C", str(dest), "add", "-A"], check=True)
+    subprocess.run([*git, "-C", str(dest), "commit", "-q", "--allow-empty", "-m", "uncommitted changes"], check=True)
+    (dest / ".venv").symlink_to(REPO_ROOT / ".venv")
+    return dest
+
+
+@pytest.mark.slow
+def test_a_smoke_reproduce_leaves_git_status_empty(tmp_path: Path) -> None:
+    """The README's main command, default paths, in a fresh clone: run dirs and the smoke
+    collector's output land in git-ignored places, the committed results/ is untouched."""
+    clone = clone_of_this_tree(tmp_path / "clone")
+    done = subprocess.run([sys.executable, "-m", "plls_bench.reproduce", "--profile", "smoke", "--only",
+                           "mountaincar_data"], cwd=clone, env={**os.environ, "PYTHONPATH": str(clone)},
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert (clone / "results" / "runs" / "mountaincar_data" / "default" / "seed=0" / "status.json").is_file()
+    assert (clone / "results" / "smoke" / "README.md").is_file(), "the smoke collector wrote results/smoke"
+    status = subprocess.run(["git", "-C", str(clone), "status", "--porcelain"], capture_output=True, text=True)
+    assert status.returncode == 0 and status.stdout == ""
 
 
 @pytest.mark.slow

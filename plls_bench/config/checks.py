@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import fields
+from pathlib import Path
 
 from omegaconf import MISSING
 
@@ -34,6 +36,18 @@ def check_choice(value: str, choices: tuple[str, ...], key: str) -> None:
 def check_fraction(value: float, key: str, *, open_right: bool = True) -> None:
     upper_ok = value < 1 if open_right else value <= 1
     check(0 < value and upper_ok, key, f"must be in (0, 1{')' if open_right else ']'}, got {value!r}")
+
+
+def check_writable_dir(path: str, key: str) -> None:
+    """Raise :class:`ConfigError` naming ``key`` unless ``path`` is a directory this process can
+    create or write into. Creates nothing: the nearest existing ancestor must be a directory with
+    write and search permission. A machine-side check for commands about to write (not part of
+    :meth:`Validated.validate`: recorded configs name paths of other machines). As root, only a
+    read-only mount fails ``os.access``; a mode-0555 directory still passes, as root may write there."""
+    target = Path(os.path.abspath(path))
+    existing = next(p for p in (target, *target.parents) if p.exists())  # "/" always exists
+    check(existing.is_dir(), key, f"cannot create or write {path}: {existing} is not a directory")
+    check(os.access(existing, os.W_OK | os.X_OK), key, f"cannot create or write {path}: {existing} is not writable")
 
 
 class Validated:

@@ -36,6 +36,7 @@ from plls_bench.repr.keys import (CONFIG_KEYS, FILES, KINDS, NAMES, build_comman
 from plls_bench.repr.models import ActionVAE, StateVAE
 from plls_bench.repr.train import build, new_model
 from plls_bench.runs import read_json
+from plls_bench.seeding import quiet_rng
 
 log = logging.getLogger(__name__)
 
@@ -161,7 +162,8 @@ def load_model(cfg: Config, which: str, artifact: Artifact) -> ActionVAE | State
     the artifact's ``meta.json``, so loading never builds the task's env."""
     meta = read_json(artifact.path / "meta.json") or {}
     n_actions = int(meta["input_dim"]) if which == "action" and "input_dim" in meta else None
-    model = new_model(cfg, which, n_actions)
+    with quiet_rng():  # the throw-away initial weights never draw from the global stream
+        model = new_model(cfg, which, n_actions)
     load_weights(artifact.path / "model.pt", model, CONFIG_KEYS[which])
     return model.to(resolve_device(cfg.device)).eval().requires_grad_(False)
 

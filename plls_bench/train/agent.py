@@ -20,6 +20,7 @@ from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import read_json
+from plls_bench.seeding import quiet_rng
 from plls_bench.train.checkpoint import latest, normalization
 from plls_bench.train.networks import policy_kwargs
 from plls_bench.train.normalize import ObsMap, frozen_obs_map
@@ -85,7 +86,9 @@ def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
     cfg = config_from_dict(record["config"])
-    model = PPO.load(found[0], device=resolve_device(device))
+    target = resolve_device(device)
+    with quiet_rng(target):  # PPO.load builds a policy (random init) before loading its weights
+        model = PPO.load(found[0], device=target)
     reprs = load_representations(replace(cfg, device=device))  # beside the policy, not on the recorded device
     return Trained(cfg, model, frozen_obs_map(normalization(Path(run_dir))), reprs)
 

@@ -30,6 +30,7 @@ from plls_bench.envs import make_vec_env
 from plls_bench.latent import wrap_latent
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import Run, read_json
+from plls_bench.seeding import quiet_rng
 from plls_bench.train.loop import Progress
 
 CHECKPOINT = "checkpoints/dbc.pt"
@@ -124,7 +125,8 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
         obs_shape, space = venv.observation_space.shape, venv.action_space
     finally:
         venv.close()
-    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target)
+    with quiet_rng(target):  # the agent's throw-away initial weights never draw from the global stream
+        agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target)
     state = torch.load(path, map_location=agent.device, weights_only=True)
     agent.load_state_dict(state["agent"])
     return cfg, agent, space, reprs
