@@ -12,7 +12,7 @@ from plls_bench.report.load import Experiment, Runs, Trial
 from plls_bench.report.stats import CURVE_RESAMPLES, align, bootstrap_ci, complete, convergence_index
 
 X_AXES = ("iteration", "env_steps", "wall_s", "env_steps_per_env")
-DEFAULT_X_AXIS = "iteration"  # PAPER_SPEC: the paper-matching axis is PPO iterations
+DEFAULT_X_AXIS = "iteration"  # the paper's axis, PPO iterations (docs/decisions.md#d1)
 
 
 @dataclass

@@ -20,7 +20,7 @@ CONFIDENCE = 0.95             # two-sided percentile interval
 SCORE_RESAMPLES = 10_000      # for scalar scores (final return, IQM, P(improvement), MSE)
 CURVE_RESAMPLES = 2_000       # per-evaluation bands and curve-level statistics
 CONVERGENCE_WINDOW = 5        # evaluations in the trailing smoothing window (Table 3)
-CONVERGENCE_TOLERANCE = 0.05  # "within 5% of its final value" (PAPER_SPEC, Table 3)
+CONVERGENCE_TOLERANCE = 0.05  # "within 5% of its final value": docs/decisions.md#d4 (Table 3)
 # "Never" (+inf, e.g. a curve that never converges) enters arch's percentile as the largest float:
 # its linear interpolation turns inf - inf into NaN. A bound beyond _NEVER_BOUND lies at or
 # towards "never" and is reported as inf.
