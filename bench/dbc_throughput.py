@@ -36,16 +36,23 @@ from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 SECTION = "dbc_throughput"
 
 
-def measure(preset: str, budget: str, threads: int, steps: int, updates: int, runs_dir: str,
-            overrides: Sequence[str] = ()) -> dict[str, float]:
-    """Acting env steps/s and seconds per update; ``overrides`` apply after the preset's."""
+def build_trainer(preset: str, budget: str, runs_dir: str, overrides: Sequence[str] = ()) -> DBCTrainer:
+    """A set-up ``DBCTrainer`` as the ``dbc`` runner builds it; ``overrides`` apply after the preset's."""
     cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false",
                    *overrides])
-    torch.set_num_threads(threads)
     seed_everything(0)
     # load_representations never trains: the V_a must exist (bench/throughput.py prepares it)
     trainer = DBCTrainer(cfg, Run(Path(runs_dir) / "bench" / preset), load_representations(cfg))
     trainer.setup()
+    return trainer
+
+
+def measure(preset: str, budget: str, threads: int, steps: int, updates: int, runs_dir: str,
+            overrides: Sequence[str] = ()) -> dict[str, float]:
+    """Acting env steps/s and seconds per update; ``overrides`` apply after the preset's."""
+    torch.set_num_threads(threads)
+    trainer = build_trainer(preset, budget, runs_dir, overrides)
+    cfg = trainer.cfg
     try:
         obs = trainer.train_env.reset()
         trainer.replay.start_episode(obs[0])
