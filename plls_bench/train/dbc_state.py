@@ -124,7 +124,7 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
         obs_shape, space = venv.observation_space.shape, venv.action_space
     finally:
         venv.close()
-    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target)
+    agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target, cfg.precision)
     state = torch.load(path, map_location=agent.device, weights_only=True)
     agent.load_state_dict(state["agent"])
     return cfg, agent, space, reprs
