@@ -15,6 +15,7 @@ from torch import nn
 
 from plls_bench.repr.models import ActionVAE, StateVAE
 from plls_bench.repr.store import Representations
+from plls_bench.trunks import pixels_to_unit
 
 
 def _device(module: nn.Module) -> torch.device:
@@ -22,7 +23,10 @@ def _device(module: nn.Module) -> torch.device:
 
 
 class LatentObservation(VecEnvWrapper):
-    """Observations ``(n, 3, H, W)`` (float in [0, 1], or uint8) -> V_s encoder means ``(n, N_z)``.
+    """Observations ``(n, 3, H, W)`` (uint8, or float in [0, 1]) -> V_s encoder means ``(n, N_z)``.
+
+    uint8 frames become float32 exactly as V_s's training batches do (:func:`pixels_to_unit`), so
+    V_s sees the frames it was trained on; its encoder runs in the precision it was built with.
 
     ``terminal_observation`` entries of the step's infos (envs that just finished; PPO bootstraps
     truncated episodes from them) are encoded in the same forward pass as the observations.
@@ -34,15 +38,13 @@ class LatentObservation(VecEnvWrapper):
             raise ValueError(f"LatentObservation needs Box observations of shape {state_vae.image_shape} "
                              f"for V_s, got {space}")
         self.state_vae = state_vae
-        self._scale = 1.0 / 255.0 if space.dtype == np.uint8 else 1.0
         latent = spaces.Box(-np.inf, np.inf, shape=(state_vae.latent_dim,), dtype=np.float32)
         super().__init__(venv, observation_space=latent)
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
         """``(k, 3, H, W)`` -> ``(k, N_z)`` float32 posterior means, one forward pass."""
         with torch.inference_mode():
-            x = torch.as_tensor(obs, device=_device(self.state_vae)).float() * self._scale
-            mu, _ = self.state_vae.encode(x)
+            mu, _ = self.state_vae.encode(pixels_to_unit(torch.as_tensor(obs, device=_device(self.state_vae))))
         return mu.cpu().numpy().astype(np.float32, copy=False)
 
     def reset(self) -> VecEnvObs:

@@ -59,8 +59,8 @@ def device_used(setting: str) -> dict[str, str]:
     return {"device_resolved": str(device), "device_name": device_name(device)}
 
 
-def collect_provenance(device: str = "auto") -> dict[str, Any]:
-    """This start's record; ``device`` is the run's ``device`` setting."""
+def collect_provenance(device: str = "auto", precision: str = "fp32") -> dict[str, Any]:
+    """This start's record; ``device`` and ``precision`` are the run's settings."""
     return {
         **git_state(),
         "packages": package_versions(),
@@ -69,6 +69,7 @@ def collect_provenance(device: str = "auto") -> dict[str, Any]:
         "host": socket.gethostname(),
         "device": device_description(),
         **device_used(device),
+        "precision": precision,  # the conv trunks' (plls_bench/trunks.py); everything else is fp32
         "mujoco_gl": os.environ.get("MUJOCO_GL"),
         "start_time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }

@@ -37,7 +37,7 @@ HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
 HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
     "algo.ppo.use_sde": False, "algo.ppo.sde_sample_freq": 0,
     "algo.ppo.normalize_obs": False, "algo.ppo.normalize_reward": False,
-    "env.backend": "gymnasium",
+    "env.backend": "gymnasium", "precision": "fp32",
 }
 # Nested keys that change speed, never results (envpool steps each env on its own random stream,
 # whichever thread runs it): always left out of the hash, as torch_threads is.
@@ -220,7 +220,8 @@ class Run:
         from plls_bench.provenance import collect_provenance  # lazy: imports torch & friends
 
         previous = read_json(self.path / "provenance.json") or {}
-        starts = list(previous.get("starts", [])) + [collect_provenance(getattr(cfg, "device", "auto"))]
+        starts = list(previous.get("starts", [])) + [collect_provenance(getattr(cfg, "device", "auto"),
+                                                                     getattr(cfg, "precision", "fp32"))]
         atomic_write_json(self.path / "provenance.json", {**starts[0], "starts": starts})
 
     def read_config(self) -> dict[str, Any] | None:

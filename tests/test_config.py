@@ -135,6 +135,8 @@ BAD_INPUTS = [
     (["+experiment=carracing_ppo", "env.backend=brax"], "env.backend"),
     (["+experiment=cheetah_dbc", "env.backend=envpool"], "env.backend"),
     (["+experiment=carracing_ppo", "env.backend=envpool", "env.backend_threads=-1"], "env.backend_threads"),
+    # the conv trunks' precision: fp32 | bf16 (fp16 has no CPU autocast and no scaler here)
+    (["+experiment=carracing_ppo", "precision=fp16"], "precision"),
 ]
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import VecMonitor
@@ -30,7 +31,7 @@ def test_episode_boundaries_follow_sb3_semantics() -> None:
     the last frame in ``terminal_observation``, and never shows that extra step."""
     n_envs, steps = 2, 3 * HORIZON
     actions = _actions(steps, n_envs)
-    adapter = EnvpoolVecEnv("CarRacing-v3", n_envs, HORIZON, seed=11, as_float=False)
+    adapter = EnvpoolVecEnv("CarRacing-v3", n_envs, HORIZON, seed=11)
     first = adapter.reset()
     got = [adapter.step(a) for a in actions]
 
@@ -61,16 +62,16 @@ def test_vec_env_check() -> None:
     """What SB3's check_env asserts of an env, for the vector env: spaces, dtypes, values in the
     spaces, per-env info dicts, clipped actions, VecMonitor statistics, determinism per seed."""
     venv = VecMonitor(EnvpoolVecEnv("CarRacing-v3", 3, HORIZON, seed=4))
-    assert venv.observation_space.shape == (3, 96, 96) and venv.observation_space.dtype == np.float32
+    assert venv.observation_space == gym.spaces.Box(0, 255, (3, 96, 96), np.uint8)  # SB3's image convention
     assert venv.action_space.shape == (3,)
     obs = venv.reset()
-    assert obs.shape == (3, 3, 96, 96) and obs.dtype == np.float32
+    assert obs.shape == (3, 3, 96, 96) and obs.dtype == np.uint8
     assert all(venv.observation_space.contains(o) for o in obs)
     total = np.zeros(3)
     for t in range(HORIZON):
         obs, rewards, dones, infos = venv.step(np.full((3, 3), 5.0))  # out of the box: clipped
         total += rewards
-        assert obs.dtype == np.float32 and rewards.dtype == np.float32 and dones.dtype == bool
+        assert obs.dtype == np.uint8 and rewards.dtype == np.float32 and dones.dtype == bool
         assert isinstance(infos, list) and len(infos) == 3
     assert dones.all()
     for i, info in enumerate(infos):

@@ -14,6 +14,7 @@ from plls_bench.latent import LatentAction, LatentObservation, latent_modules, w
 from plls_bench.repr.store import ensure_representations
 from plls_bench.repr.train import new_model
 from plls_bench.repr.accounting import parameter_counts
+from plls_bench.trunks import pixels_to_unit
 from tests.conftest import compose_preset
 
 
@@ -114,7 +115,7 @@ def test_latent_observation_encodes_steps_and_terminal_observations_in_one_pass(
         assert calls[-1] == n_envs + len(finished), "terminal observations ride in the same pass"
         raw = np.concatenate([recorder.obs, *(recorder.infos[i]["terminal_observation"][None] for i in finished)])
         with torch.no_grad():
-            mu = vae.encoder(torch.as_tensor(raw))[0].numpy()
+            mu = vae.encoder(pixels_to_unit(torch.as_tensor(raw)))[0].numpy()  # uint8 frames, as V_s trains
         assert np.allclose(obs, mu[:n_envs], atol=1e-5)
         for row, i in enumerate(finished, start=n_envs):
             assert infos[i]["terminal_observation"].shape == (32,)

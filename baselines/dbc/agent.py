@@ -43,12 +43,13 @@ def soft_update(net: nn.Module, target: nn.Module, tau: float) -> None:
 
 
 class DBCAgent:
-    """Actor, twin critic (+ target), transition model and reward decoder, with their optimisers."""
+    """Actor, twin critic (+ target), transition model and reward decoder, with their optimisers.
+    ``precision`` (the run's ``cfg.precision``) applies to the pixel encoder's conv trunk only."""
 
     def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: DBCConfig,
-                 device: torch.device | str = "cpu") -> None:
+                 device: torch.device | str = "cpu", precision: str = "fp32") -> None:
         self.cfg, self.device = cfg, torch.device(device)
-        trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim)
+        trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim, precision)
         self.critic = Critic(Encoder(trunk, cfg.encoder_feature_dim), action_dim, cfg.hidden_dim)
         # the actor shares the critic's trunk (the reference ties the conv weights)
         self.actor = Actor(Encoder(trunk, cfg.encoder_feature_dim), action_dim, cfg.hidden_dim,

@@ -28,10 +28,14 @@ from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_A
 from plls_bench.devices import DEVICES
 
 __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "ENV_NAMES", "FEATURE_EXTRACTORS", "LATENT_CHOICES",
-           "PPO_ACTIVATIONS", "REPR_KINDS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
+           "PPO_ACTIVATIONS", "PRECISIONS", "REPR_KINDS", "STUDY_NAMES", "TRANSITION_MODELS", "VAE_ACTIVATIONS",
            "ActionReprConfig", "AlgoConfig", "BudgetConfig", "Config", "ConfigError", "DBCConfig", "EnvConfig",
            "FilmstripConfig", "PPOConfig", "ReprConfig", "StateReprConfig", "StudyConfig", "Validated", "check",
            "check_choice", "check_fraction", "check_nonnegative", "check_positive", "register_configs", "to_config"]
+
+# How the conv trunks compute (plls_bench/trunks.py): fp32, or bf16 autocast around the trunks only.
+PRECISIONS = ("fp32", "bf16")
+
 
 # --------------------------------------------------------------------------- root
 @dataclass
@@ -46,6 +50,7 @@ class Config(Validated):
     runs_dir: str = "results/runs"
     device: str = "auto"
     torch_threads: int = 0
+    precision: str = "fp32"
     progress: bool = True
     env: EnvConfig = field(default_factory=EnvConfig)
     repr: ReprConfig = field(default_factory=ReprConfig)
@@ -62,6 +67,7 @@ class Config(Validated):
         check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
         check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
         check_choice(self.device, DEVICES, "device")
+        check_choice(self.precision, PRECISIONS, "precision")
         check_nonnegative(self.torch_threads, "torch_threads")
         check(bool(self.experiment) and "/" not in self.experiment, "experiment",
               f"must be a non-empty name without '/', got {self.experiment!r}")

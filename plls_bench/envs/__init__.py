@@ -1,8 +1,9 @@
 """Env factories for the paper's three tasks, keyed by ``env.name``.
 
-Pixel observations are channel-first everywhere in the suite: CarRacing ``(3, 96, 96)`` float32 in
-[0, 1] (the paper's layout, Sec. 5.2), Cheetah ``(3 * frame_stack, 84, 84)`` uint8 (as the DBC
-reference; its encoder divides by 255). Random-policy data stores pixels as uint8 ``(C, H, W)``.
+Pixel observations are channel-first uint8 everywhere in the suite: CarRacing ``(3, 96, 96)``,
+Cheetah ``(3 * frame_stack, 84, 84)`` (as the DBC reference). The networks divide by 255 (SB3's
+image convention for PPO's policy, V_s's batches, DBC's encoder), so they compute on the paper's
+"three floating point values between 0 and 1" (Sec. 5.2) while rollouts and data keep uint8.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def _carracing(cfg: EnvConfig, for_data: bool, render_mode: str | None) -> gym.E
 
     env = gym.make(cfg.gym_id, continuous=True, max_episode_steps=cfg.max_episode_steps,
                    render_mode=render_mode)
-    return ChannelsFirst(env, as_float=not for_data)
+    return ChannelsFirst(env)
 
 
 def _cheetah(cfg: EnvConfig, for_data: bool, render_mode: str | None) -> gym.Env:

@@ -16,8 +16,8 @@ resets, so test episode j always runs on the track of seed ``eval_seed + j`` -- 
 backend: the two engines draw different tracks from the same seed, which is why the backend is
 part of every config hash, artifact key and run-dir variant.
 
-Observations are converted to the suite's layout: channel-first, float32 in [0, 1] for agents,
-uint8 for stored data (as :class:`plls_bench.envs.carracing.ChannelsFirst` does for gymnasium).
+Observations are converted to the suite's layout: channel-first uint8 pixels, for agents and stored
+data alike (as :class:`plls_bench.envs.carracing.ChannelsFirst` does for gymnasium).
 """
 from __future__ import annotations
 
@@ -66,15 +66,13 @@ def _spaces(task_id: str, max_episode_steps: int) -> tuple[gym.spaces.Box, gym.s
 
 
 class _Layout:
-    """envpool observations -> the suite's layout (pixels HWC uint8 -> CHW, float or uint8)."""
+    """envpool observations -> the suite's layout (pixels HWC uint8 -> CHW uint8)."""
 
-    def __init__(self, space: gym.spaces.Box, as_float: bool) -> None:
+    def __init__(self, space: gym.spaces.Box) -> None:
         self.pixels = len(space.shape) == 3
-        self.as_float = as_float
         if self.pixels:
             h, w, c = space.shape
-            self.space = (gym.spaces.Box(0.0, 1.0, (c, h, w), np.float32) if as_float
-                          else gym.spaces.Box(0, 255, (c, h, w), np.uint8))
+            self.space = gym.spaces.Box(0, 255, (c, h, w), np.uint8)
         else:
             self.space = gym.spaces.Box(space.low.astype(np.float32), space.high.astype(np.float32), space.shape, np.float32)
 
@@ -82,8 +80,7 @@ class _Layout:
         """``(n, *envpool shape)`` -> ``(n, *self.space.shape)``."""
         if not self.pixels:
             return np.asarray(obs, dtype=np.float32)
-        chw = np.ascontiguousarray(np.asarray(obs).transpose(0, 3, 1, 2))
-        return chw.astype(np.float32) / 255.0 if self.as_float else chw
+        return np.ascontiguousarray(np.asarray(obs, dtype=np.uint8).transpose(0, 3, 1, 2))
 
 
 def _by_env_id(info: dict[str, Any], *arrays: np.ndarray) -> list[np.ndarray]:
@@ -96,11 +93,11 @@ class EnvpoolVecEnv(VecEnv):
     """``n_envs`` envpool envs as an SB3 ``VecEnv`` (see the module docstring)."""
 
     def __init__(self, task_id: str, n_envs: int, max_episode_steps: int, num_threads: int = 0,
-                 seed: int = 0, as_float: bool = True) -> None:
+                 seed: int = 0) -> None:
         self.task_id, self.max_episode_steps, self.num_threads = task_id, max_episode_steps, num_threads
         self._seed, self._pool, self._actions = seed, None, None
         observation_space, action_space = _spaces(task_id, max_episode_steps)  # envpool's spaces are per env
-        self._layout = _Layout(observation_space, as_float)
+        self._layout = _Layout(observation_space)
         self._low, self._high = action_space.low, action_space.high
         super().__init__(n_envs, self._layout.space, gym.spaces.Box(
             self._low.astype(np.float32), self._high.astype(np.float32), action_space.shape, np.float32))
@@ -173,7 +170,7 @@ class EnvpoolDataEnvs:
         self.task_id, self.num_envs, self.max_episode_steps = task_id, n_envs, max_episode_steps
         self.num_threads, self._pool = num_threads, None
         observation_space, self.single_action_space = _spaces(task_id, max_episode_steps)
-        self._layout = _Layout(observation_space, as_float=False)
+        self._layout = _Layout(observation_space)
 
     def reset(self, seed: Sequence[int]) -> tuple[np.ndarray, dict[str, Any]]:
         self.close()

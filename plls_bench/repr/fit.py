@@ -21,6 +21,7 @@ from torch import Tensor
 from plls_bench.progress import progress_bar
 from plls_bench.repr.models import VAE
 from plls_bench.runs import atomic_write_bytes
+from plls_bench.trunks import pixels_to_unit
 
 log = logging.getLogger(__name__)
 
@@ -37,8 +38,7 @@ class Split:
 
     def batch(self, rows: np.ndarray, device: torch.device) -> Tensor:
         """Rows ``rows`` of the split as float32, uint8 pixels scaled to [0, 1]."""
-        x = torch.as_tensor(self.array[self.index[rows]], device=device)
-        return x.float().div_(255.0) if x.dtype == torch.uint8 else x.float()
+        return pixels_to_unit(torch.as_tensor(self.array[self.index[rows]], device=device))
 
 
 @contextmanager

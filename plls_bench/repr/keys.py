@@ -47,8 +47,15 @@ def training_seed(cfg: Config, which: str) -> int:
 def repr_key(cfg: Config, which: str) -> dict[str, Any]:
     """Everything that determines a trained representation: data, architecture, training."""
     settings = {k: v for k, v in asdict(model_config(cfg, which)).items() if k not in _NOT_IN_KEY}
-    return {"format": REPR_FORMAT, "model": which, "data": dataset_key(cfg), "repr": settings,
-            "epochs": cfg.budget.epochs_for(which), "training_seed": training_seed(cfg, which)}
+    key = {"format": REPR_FORMAT, "model": which, "data": dataset_key(cfg), "repr": settings,
+           "epochs": cfg.budget.epochs_for(which), "training_seed": training_seed(cfg, which)}
+    return {**key, **_precision(cfg, which)}
+
+
+def _precision(cfg: Config, which: str) -> dict[str, str]:
+    """V_s's conv trunks train in ``cfg.precision``; a bf16 V_s is another artifact. fp32 (all
+    artifacts before the key) stays out of the key, so theirs are unchanged; V_a has no conv trunk."""
+    return {"precision": cfg.precision} if which == "state" and cfg.precision != "fp32" else {}
 
 
 def repr_path(cfg: Config, which: str) -> Path:
@@ -77,6 +84,7 @@ def build_command(cfg: Config, which: str) -> str:
     args += [f"budget={cfg.budget.name}", f"runs_dir={cfg.runs_dir}"]
     args += [f"data_seed={cfg.data_seed}"] if cfg.data_seed else []
     args += ["repr.per_trial=true"] if cfg.repr.per_trial else []
+    args += [f"precision={cfg.precision}"] if _precision(cfg, which) else []
     if cfg.seed and (cfg.repr.per_trial or cfg.repr.per_trial_training):
         args.append(f"seed={cfg.seed}")  # the seed is part of the key then
     command = "python -m plls_bench " + " ".join(args)

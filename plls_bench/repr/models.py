@@ -12,6 +12,7 @@ import torch
 from torch import Tensor, nn
 
 from plls_bench.config import ActionReprConfig, StateReprConfig
+from plls_bench.trunks import PixelTrunk, to_channels_last
 
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "elu": nn.ELU, "tanh": nn.Tanh}
 
@@ -93,9 +94,13 @@ class ActionVAE(VAE):
 
 
 class StateVAE(VAE):
-    """V_s: ``(B, 3, H, W)`` frames in [0, 1] <-> ``(B, N_z)`` latents (Sec. 5.2, Fig. 12)."""
+    """V_s: ``(B, 3, H, W)`` frames in [0, 1] <-> ``(B, N_z)`` latents (Sec. 5.2, Fig. 12).
 
-    def __init__(self, cfg: StateReprConfig, image_size: int, in_channels: int = 3) -> None:
+    The encoder's conv stack and the whole decoder are :class:`PixelTrunk` s: channels_last, in
+    ``precision`` (the run's ``cfg.precision``); the posterior heads (mu, log_var) stay fp32."""
+
+    def __init__(self, cfg: StateReprConfig, image_size: int, in_channels: int = 3,
+                 precision: str = "fp32") -> None:
         super().__init__(cfg.latent_dim, cfg.likelihood_std, cfg.kl_weight)
         self.image_shape = (in_channels, image_size, image_size)
         widths = [in_channels, *cfg.channels]
@@ -105,7 +110,8 @@ class StateVAE(VAE):
         side = cfg.feature_sizes(image_size)[-1]
         self.feature_shape = (cfg.channels[-1], side, side)
         features = math.prod(self.feature_shape)
-        self.encoder = GaussianEncoder(nn.Sequential(*convs, nn.Flatten()), features, cfg.latent_dim)
+        self.encoder = GaussianEncoder(PixelTrunk(*convs, nn.Flatten(), precision=precision), features,
+                                       cfg.latent_dim)
         back = [cfg.channels[-1], *reversed(cfg.channels[:-1]), in_channels]
         deconvs: list[nn.Module] = []
         for i, (n_in, n_out, kernel) in enumerate(zip(back[:-1], back[1:], cfg.deconv_kernel_sizes)):
@@ -113,5 +119,6 @@ class StateVAE(VAE):
             # sigmoid on the last layer: pixels are in [0, 1] (Sec. 5.2)
             deconvs += [nn.ConvTranspose2d(n_in, n_out, kernel, stride=2), nn.Sigmoid() if last else nn.ReLU()]
         # FC z -> feature map without an activation, as World Models' decoder ("dec_fc")
-        self.decoder = nn.Sequential(nn.Linear(cfg.latent_dim, features),
-                                     nn.Unflatten(1, self.feature_shape), *deconvs)
+        self.decoder = PixelTrunk(nn.Linear(cfg.latent_dim, features), nn.Unflatten(1, self.feature_shape),
+                                  *deconvs, precision=precision)
+        to_channels_last(self)

@@ -39,7 +39,7 @@ def new_model(cfg: Config, which: str, n_actions: int | None = None) -> ActionVA
     """An untrained model with the config's architecture (``n_actions`` for V_a, else from the env)."""
     if which == "action":
         return ActionVAE(cfg.repr.action, n_actions if n_actions is not None else action_dim(cfg))
-    return StateVAE(cfg.repr.state, cfg.env.image_size)
+    return StateVAE(cfg.repr.state, cfg.env.image_size, precision=cfg.precision)
 
 
 def splits(data: RandomPolicyData, which: str, val_fraction: float) -> tuple[Split, Split, Split]:
@@ -123,7 +123,8 @@ def _mean_predictor_mse(train: Split, test: Split, chunk: int = 1000) -> float:
 
 def _write(out: Path, model: VAE, history: list[dict], samples: dict[str, np.ndarray], test: dict) -> None:
     buffer = io.BytesIO()
-    torch.save({k: v.detach().cpu() for k, v in model.state_dict().items()}, buffer)
+    # contiguous: the stored weights do not depend on the layout the model ran in (plls_bench/trunks.py)
+    torch.save({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, buffer)
     atomic_write_bytes(out / "model.pt", buffer.getvalue())
     atomic_write_json(out / "history.json", history)
     atomic_write_json(out / "test.json", test)

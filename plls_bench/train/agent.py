@@ -6,10 +6,11 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import torch
 from stable_baselines3 import PPO
-from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 from torch import nn
 
@@ -22,7 +23,7 @@ from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import read_json
 from plls_bench.seeding import quiet_rng
 from plls_bench.train.checkpoint import latest, normalization
-from plls_bench.train.networks import policy_kwargs
+from plls_bench.train.networks import ChannelsLastPolicy, policy_kwargs
 from plls_bench.train.normalize import ObsMap, frozen_obs_map
 
 
@@ -40,12 +41,33 @@ def new_model(cfg: Config, venv: VecEnv) -> PPO:
     """An untrained SB3 PPO with Table 1 / Table 2 settings and the paper's shared network."""
     ppo = cfg.algo.ppo
     assert ppo is not None
-    return PPO(ActorCriticPolicy, venv, learning_rate=ppo.learning_rate, n_steps=ppo.n_steps,
+    return PPO(ChannelsLastPolicy, venv, learning_rate=ppo.learning_rate, n_steps=ppo.n_steps,
                batch_size=ppo.batch_size, n_epochs=ppo.n_epochs, gamma=ppo.gamma,
                gae_lambda=ppo.gae_lambda, clip_range=ppo.clip_range, ent_coef=ppo.ent_coef,
-               vf_coef=ppo.vf_coef, max_grad_norm=ppo.max_grad_norm, policy_kwargs=policy_kwargs(ppo),
+               vf_coef=ppo.vf_coef, max_grad_norm=ppo.max_grad_norm,
+               policy_kwargs=policy_kwargs(ppo, cfg.precision),
                use_sde=ppo.use_sde, sde_sample_freq=ppo.sde_sample_freq if ppo.sde_sample_freq else -1,
                device=resolve_device(cfg.device), verbose=0)
+
+
+def load_model(zip_path: Path, device: torch.device, venv: VecEnv | None = None) -> PPO:
+    """A checkpointed PPO, on ``venv`` (to train on) or without an env (to act).
+
+    Policies saved while CarRacing frames were float32 in [0, 1] load onto today's uint8 frames:
+    SB3 divides a uint8 image Box by 255 itself, so the same weights see the same values; only
+    the observation space the checkpoint records is read as the uint8 image Box."""
+    data, _, _ = load_from_zip_file(zip_path, device="cpu", load_data=True)
+    space = _uint8_pixels(data["observation_space"])
+    with quiet_rng(device):  # PPO.load builds a policy (random init) before loading its weights
+        return PPO.load(zip_path, env=venv, device=device, custom_objects={"observation_space": space})
+
+
+def _uint8_pixels(space: gym.spaces.Space) -> gym.spaces.Space:
+    """A float32 [0, 1] image Box as SB3's uint8 image Box; any other space unchanged."""
+    if (isinstance(space, gym.spaces.Box) and len(space.shape) == 3 and space.dtype == np.float32
+            and np.all(space.low == 0.0) and np.all(space.high == 1.0)):
+        return gym.spaces.Box(0, 255, space.shape, np.uint8)
+    return space
 
 
 def accounting(model: PPO, venv: VecEnv) -> tuple[dict[str, nn.Module], dict[str, torch.Tensor]]:
@@ -86,9 +108,7 @@ def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
     cfg = config_from_dict(record["config"])
-    target = resolve_device(device)
-    with quiet_rng(target):  # PPO.load builds a policy (random init) before loading its weights
-        model = PPO.load(found[0], device=target)
+    model = load_model(found[0], resolve_device(device))
     reprs = load_representations(replace(cfg, device=device))  # beside the policy, not on the recorded device
     return Trained(cfg, model, frozen_obs_map(normalization(Path(run_dir))), reprs)
 

@@ -103,7 +103,7 @@ class DBCTrainer:
         self.train_env, self.eval_env = make_envs(cfg, self.seeds.train, reprs)
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))
-        self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device)
+        self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device, cfg.precision)
         self.replay = FrameReplay(obs_shape, cfg.env.frame_stack if cfg.env.pixels else 1, self.action_dim,
                                   capacity=min(self.dbc.replay_capacity, self.iterations),
                                   episode_length=math.ceil(cfg.env.max_episode_steps / cfg.env.action_repeat))

@@ -126,7 +126,7 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     finally:
         venv.close()
     with quiet_rng(target):  # the agent's throw-away initial weights never draw from the global stream
-        agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target)
+        agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target, cfg.precision)
     state = torch.load(path, map_location=agent.device, weights_only=True)
     agent.load_state_dict(state["agent"])
     return cfg, agent, space, reprs

@@ -26,9 +26,9 @@ from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.store import ensure_representations
 from plls_bench.runs import Run
-from plls_bench.seeding import derive_seeds, quiet_rng, sub_seed
+from plls_bench.seeding import derive_seeds, sub_seed
 from plls_bench.train import checkpoint, loop, normalize
-from plls_bench.train.agent import accounting, build_vec_env, new_model, sb3_metrics
+from plls_bench.train.agent import accounting, build_vec_env, load_model, new_model, sb3_metrics
 from plls_bench.train.loop import Progress
 
 _EVAL_SAMPLING = 1  # sub-stream of the eval seed for stochastic test actions
@@ -180,9 +180,7 @@ def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tu
     saved_stats = checkpoint.normalization(run.path)
     if saved_stats is not None:
         normalize.restore(venv, saved_stats)
-    device = resolve_device(cfg.device)
-    with quiet_rng(device):  # loading builds a policy first; the checkpoint's RNG states follow
-        model = PPO.load(zip_path, env=venv, device=device)
+    model = load_model(zip_path, resolve_device(cfg.device), venv)  # under quiet_rng: the checkpoint's RNG states follow
     checkpoint.set_rng_state(rng)
     return model, replace(saved, env_steps=saved.agent_steps * cfg.env.action_repeat), False
 
