@@ -33,6 +33,7 @@ PRESETS: dict[str, list[str]] = {
     "mountaincar_va": ["env=mountaincar", "runner=repr", "repr/action=vae"],
     "carracing_vs": ["env=carracing", "runner=repr", "repr/state=vae"],
     "carracing_va": ["env=carracing", "runner=repr", "repr/action=vae"],
+    "carracing_data": ["+experiment=carracing_data"],
 }
 
 
@@ -170,6 +171,9 @@ def fill(run: Run, cfg: Config, rng: np.random.Generator) -> None:
         write_architecture(run, trainable="plls" not in name)
         if name in PLLS_FILMSTRIPS and cfg.seed == 0:
             write_filmstrip(run, *PLLS_FILMSTRIPS[name])
+    elif cfg.runner == "collect":
+        run.write_json("metrics/dataset.json", {"task": cfg.env.name, "transitions": 10_000, "episodes": 10,
+                                                "episode_return_mean": -55.3, "episode_return_std": 18.0})
     elif cfg.runner == "repr":
         for model, kind in (("state", cfg.repr.state.kind), ("action", cfg.repr.action.kind)):
             if kind == "vae":  # one representation shared by all trials, as in the paper's offline phase

@@ -26,8 +26,10 @@ from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write
                                   write_params, write_repr)
 
 ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
-PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9}
-PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)]}
+# Three trials per method: the fewest a comparison is judged from (report.matched.MIN_TRIALS). Each
+# mean curve is that of the first two trials alone (PL-LS 0, 50, 90, 100, ...; PPO 5i + 10).
+PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9, 2: [0, 50, 90] + [100] * 9}
+PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)], 2: [5 * i + 20 for i in range(12)]}
 
 
 def build_hand_runs(runs_dir: Path, budget: str = "quick") -> None:
@@ -35,13 +37,14 @@ def build_hand_runs(runs_dir: Path, budget: str = "quick") -> None:
     for experiment, curves, params in (("carracing_plls_ppo", PLLS_RETURNS, (8802, 4394)),
                                        ("carracing_ppo", PPO_RETURNS, (3_289_768, 1_644_878))):
         for seed, curve in curves.items():
-            # two trials each: the budget's own count (3 for V_s-based CarRacing at quick) would leave a gap
+            # the budget's own count at smoke (2) would leave no gap; set it to the trials written
             run, cfg = make_run(runs_dir, experiment, seed, budget, f"budget.trials={len(curves)}")
             write_eval(run, cfg, ITERATIONS, [[r - 1, r + 1] for r in curve])  # episode mean = r
             write_params(run, *params)
             finish(run, cfg)
-    for seed, (mse, artifact) in enumerate([(0.010, "a"), (0.014, "b"), (0.010, "a")]):  # 2 distinct models
-        run, cfg = make_run(runs_dir, "mountaincar_va", seed, budget)
+    models = [(0.010, "a"), (0.014, "b"), (0.010, "a"), (0.018, "c")]  # 3 distinct models, a shared by 2 trials
+    for seed, (mse, artifact) in enumerate(models):
+        run, cfg = make_run(runs_dir, "mountaincar_va", seed, budget, f"budget.trials={len(models)}")
         write_repr(run, "action", 3, mse, artifact)
         finish(run, cfg)
     run, cfg = make_run(runs_dir, "mountaincar_plls_ppo", 0, budget)
@@ -79,7 +82,7 @@ def test_curves_on_every_x_axis(hand, tmp_path: Path) -> None:
     render_all(runs, tmp_path / "wall", only=["fig18"], x_axis="wall_s")  # evaluations at 1.5 s per iteration
     data = pd.read_csv(tmp_path / "wall" / "figures" / "fig18.csv")
     plls = data[data["series"] == "PL-LS + PPO"]
-    assert plls["x"].iloc[-1] == 33.0 and (plls["n"] == 2).all()
+    assert plls["x"].iloc[-1] == 33.0 and (plls["n"] == 3).all()
     assert plls["mean"].iloc[-1] == 100.0
     assert np.interp(3.0, plls["x"], plls["mean"]) == pytest.approx(50, abs=5)  # iteration 2
 
@@ -92,8 +95,9 @@ def test_table3_numbers_match_hand_computation(hand) -> None:
     assert (ppo["total_parameters"], ppo["trainable_parameters"]) == (3_289_768, 1_644_878)
     assert (plls["paper_total_parameters"], plls["paper_sampled_frequency"]) == (8710, 3750)
     # Mean curve 0, 50, 90, 100, ...: smoothed (trailing 5) 88 at evaluation 5, 98 at 6 -> converged at
-    # evaluation 6 = iteration 12 = 12 x 16 envs x 1000 steps. Resampling the two trials: seed 0 alone
-    # converges at evaluation 6 too, seed 1 alone at 5 (iteration 10): CI [10, 12].
+    # evaluation 6 = iteration 12 = 12 x 16 envs x 1000 steps. Resampling the three trials: a resample
+    # converges at evaluation 5 (iteration 10) only if its evaluations 1 and 2 sum to 175 or more, i.e.
+    # it drew seed 1 three times (probability 1/27 = 3.7% > 2.5%), else at 6: CI [10, 12].
     assert plls[["converged_iteration", "converged_iteration_ci_low", "converged_iteration_ci_high"]].tolist() == [
         12, 10, 12]
     assert plls["converged_env_steps"] == 192_000 and plls["converged_env_steps_ci_low"] == 160_000
@@ -111,11 +115,12 @@ def test_figure_data_mean_std_and_ci_match_hand_computation(hand) -> None:
     data = pd.read_csv(out / "figures" / "fig18.csv")
     plls = data[data["series"] == "PL-LS + PPO"].set_index("x")
     ppo = data[data["series"] == "PPO"].set_index("x")
-    # iteration 2: PL-LS trials returned 20 and 80. Two trials' bootstrap CI is exactly their range.
-    assert plls.loc[2.0, ["n", "mean", "ci_low", "ci_high"]].tolist() == [2, 50, 20, 80]
-    assert plls.loc[2.0, "std"] == pytest.approx(60 / math.sqrt(2))
+    # iteration 2: PL-LS trials returned 20, 80 and 50. A resample's mean is the lowest (highest) value
+    # only if it drew that trial three times, probability 1/27 = 3.7% > 2.5%: the CI is their range.
+    assert plls.loc[2.0, ["n", "mean", "ci_low", "ci_high"]].tolist() == [3, 50, 20, 80]
+    assert plls.loc[2.0, "std"] == pytest.approx(30)
     assert plls.loc[0.0, ["mean", "std", "ci_low", "ci_high"]].tolist() == [0, 0, 0, 0]
-    assert ppo.loc[4.0, ["mean", "ci_low", "ci_high"]].tolist() == [15, 10, 20]
+    assert ppo.loc[4.0, ["mean", "ci_low", "ci_high"]].tolist() == [20, 10, 30]
     assert len(plls) == len(ppo) == 12 and (data["x_axis"] == "iteration").all()
 
 
@@ -135,17 +140,22 @@ def test_claims_table_matches_hand_computation(hand) -> None:
     assert math.isinf(claim(out, "PPO not converged by 120,000")["suite_value"])
     beats = claim(out, "PL-LS with PPO beats PPO on CarRacing")
     assert (beats["suite_value"], beats["ci_low"], beats["ci_high"], beats["verdict"]) == (1, 1, 1, "reproduced")
-    assert beats["budget"] == "quick (2 + 2 trials)"
-    # std over trials: PPO 10/sqrt(2) at every evaluation; PL-LS 60/sqrt(2) and 20/sqrt(2) at two of
-    # twelve. Each method's resample is either both seeds (those stds) or one seed twice (std 0).
+    assert beats["budget"] == "quick (3 + 3 trials), at 352,000 env steps (iteration 22)"
+    assert beats["suite"].endswith("(final: 100 vs 65)")
+    # std over trials: PPO 10 at every evaluation (offsets 0, 10, 20); PL-LS 30 and 10 at two of
+    # twelve (evaluations 1 and 2). A resample of one seed three times has std 0, and the largest
+    # std of a resample is that of {a, a, a + 20}: 20 / sqrt(3) for PPO; for PL-LS, whose evaluations 1
+    # and 2 are spaced 30 and 10 apart, (3 + 1) x 20 / sqrt(3) / 12 over the twelve evaluations.
     variance = claim(out, "PPO has the larger variance")
-    ppo_std, plls_std = 10 / math.sqrt(2), (60 + 20) / math.sqrt(2) / 12
+    ppo_std, plls_std = 10, (30 + 10) / 12
     assert variance["suite_value"] == pytest.approx(ppo_std - plls_std)
-    assert (variance["ci_low"], variance["ci_high"]) == pytest.approx((-plls_std, ppo_std))
+    largest = 20 / math.sqrt(3)
+    assert -largest / 3 <= variance["ci_low"] < 0 < variance["suite_value"] < variance["ci_high"] <= largest
     assert variance["verdict"] == "inconclusive"
-    mse = claim(out, "V_a test MSE on MountainCar")  # models a (0.010, two trials) and b (0.014)
-    assert (mse["suite_value"], mse["ci_low"], mse["ci_high"]) == pytest.approx((0.012, 0.010, 0.014))
-    assert mse["verdict"] == "reproduced" and "2 models" in mse["suite"]
+    mse = claim(out, "V_a test MSE on MountainCar")  # models a (0.010, two trials), b (0.014) and c (0.018)
+    # each model is the lowest (highest) resample mean with probability 1/27 > 2.5%: the CI is their range
+    assert (mse["suite_value"], mse["ci_low"], mse["ci_high"]) == pytest.approx((0.014, 0.010, 0.018))
+    assert mse["verdict"] == "reproduced" and "3 models" in mse["suite"]
     assert claim(out, "Learned MountainCar policy")["verdict"] == "reproduced"  # 70 steps <= 85
     assert claim(out, "PL-LS with DBC obtains")["verdict"] == "not run at this budget"
 
@@ -171,7 +181,7 @@ def test_smoke_budget_claims_are_not_judged(tmp_path: Path) -> None:
 
 def break_runs(runs: Path) -> None:
     """Every kind of damage the collector must survive and report."""
-    (runs / "carracing_plls_ppo" / "default" / "seed=2").mkdir()  # an empty run dir
+    (runs / "carracing_plls_ppo" / "default" / "seed=3").mkdir()  # an empty run dir
     (runs / "carracing_plls_ppo" / "default" / "seed=1" / "status.json").unlink()
     eval_path = runs / "carracing_ppo" / "default" / "seed=1" / "metrics" / "eval.jsonl"
     text = eval_path.read_text()
@@ -200,10 +210,11 @@ def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) 
     assert tree_state(runs) == before, "the collector must not write, touch or delete anything under runs/"
     assert not [s.id for s in statuses.values() if s.status == "error"], [s.error for s in statuses.values()]
     readme = (out / "README.md").read_text()
-    for gap in ("carracing_plls_ppo/default seed=2: empty run dir",
+    for gap in ("carracing_plls_ppo/default seed=3: empty run dir",
                 "carracing_plls_ppo/default seed=1: status.json missing or unreadable",
                 "carracing_ppo/default seed=1: metrics/eval.jsonl: truncated last line skipped",
-                "carracing_ppo/default seed=1: curve ends before the method's last evaluation",
+                "carracing_ppo/default seed=1: curve ends before the method's last evaluation: comparisons "
+                "are judged where every trial reaches",
                 "cheetah_dbc/default: seed(s) 1 missing (budget.trials=2)",
                 "cheetah_dbc/default seed=0: status failed (RuntimeError: boom)",
                 "cheetah_dbc/default seed=0: metrics/eval.jsonl: 1 corrupt line(s) skipped",
@@ -211,12 +222,12 @@ def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) 
                 "carracing_vs/default seed=0: samples/state_reconstructions.npz: no frame labelled grass",
                 "carracing_ppo_vs/default: no runs"):
         assert gap in readme, gap
-    assert statuses["fig18"].status == "partial" and statuses["fig18"].trials == {"PL-LS + PPO": 2, "PPO": 2}
+    assert statuses["fig18"].status == "partial" and statuses["fig18"].trials == {"PL-LS + PPO": 3, "PPO": 3}
     assert statuses["fig21"].trials == {"PL-LS + DBC": 0, "DBC": 1} and statuses["fig16"].status == "empty"
     last = pd.read_csv(out / "figures" / "fig18.csv").groupby("series").last()
-    assert last.loc["PPO", "n"] == 1  # the truncated trial lost its last evaluation
+    assert last.loc["PPO", "n"] == 2  # the truncated trial lost its last evaluation
     fig = BY_ID["fig18"].build(Runs(runs), BY_ID["fig18"], Options("iteration", PAPER_DIR)).figure
-    assert "PL-LS + PPO: 2 trials, PPO: 2 trials" in fig.get_suptitle()
+    assert "PL-LS + PPO: 3 trials, PPO: 3 trials" in fig.get_suptitle()
 
 
 @pytest.mark.slow

@@ -59,7 +59,8 @@ class Entry:
     reads: str
     kind: str = "figure"
     size: tuple[float, float] = (7.0, 4.5)
+    references: tuple[str, ...] = ()  # presets read for a reference, not drawn as a source (random policy)
 
     @property
     def experiments(self) -> tuple[str, ...]:
-        return tuple(dict.fromkeys(s.experiment for s in self.sources))
+        return tuple(dict.fromkeys([*(s.experiment for s in self.sources), *self.references]))

@@ -6,6 +6,10 @@ function below), a ``rule`` and ``threshold`` (what counts as reproducing it) an
 ``min_budget`` and x range (``needs_x``) at which it can be judged. The verdict reads the suite's
 95% CI: entirely on the claim's side -> reproduced, entirely on the other -> not reproduced,
 straddling -> inconclusive; below the budget or range -> not run at this budget.
+
+Stochastic quantities need :data:`~plls_bench.report.matched.MIN_TRIALS` finished trials (per arm),
+and two arms are compared on the evaluations every finished trial of both reaches
+(:mod:`plls_bench.report.matched`); the budget column says at which x.
 """
 from __future__ import annotations
 
@@ -21,17 +25,15 @@ from plls_bench.config import BUDGET_NAMES
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.efficiency import fmt_convergence, parameter_counts
 from plls_bench.report.load import Runs
-from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_curves, scores
-from plls_bench.report.stats import (CURVE_RESAMPLES, ahead_from, bootstrap_ci, complete,
-                                     probability_of_improvement, summarise)
+from plls_bench.report.matched import Matched, NotJudged, at_text, finished_counts, matched, require_trials
+from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_curves
+from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement, summarise
 from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
+from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, rule_text,
+                                        verdict)
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 NAN2 = (math.nan, math.nan)
-
-
-class NotJudged(Exception):
-    """The runs cannot judge this claim (no data, too small a budget); the message says why."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,8 @@ def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
             values.setdefault(str(entry.get("artifact", trial.seed)), float(entry[field]))
     if not values:
         raise NotJudged(f"no {field} of model {model} in {exp.name}")
+    # stochastic: each trained model is one draw (trials sharing a model count once)
+    require_trials([len(values)], _budget(runs, exp.name), "trained models")
     return _mean_estimate(list(values.values()), "model", _budget(runs, exp.name))
 
 
@@ -83,6 +87,7 @@ def study_metric(runs: Runs, claim: dict[str, str]) -> Estimate:
     values = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
     if not values:
         raise NotJudged(f"no {claim['param']} in {exp.name}'s metrics/study.json")
+    require_trials([len(values)], _budget(runs, exp.name, n=[len(values)]))  # stochastic: actions are sampled
     return _mean_estimate(values, "trial", _budget(runs, exp.name, n=[len(values)]))
 
 
@@ -96,6 +101,7 @@ def _mean_estimate(values: list[float], unit: str, budget: str) -> Estimate:
 
 
 def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """Deterministic (the architecture fixes it): one trial suffices."""
     params = parameter_counts(runs, runs.experiment(claim["experiment"]))
     if params is None:
         raise NotJudged(f"no metrics/params.json in {claim['experiment']}")
@@ -104,6 +110,9 @@ def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
 
 
 def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
+    """Fig. 11's filmstrip: the paper drives one car with one learned policy from a fixed s0. The
+    suite films the first trial's policy, acting deterministically from that s0, so one trial is
+    the measurement (it stays one value, with no CI)."""
     exp = runs.experiment(claim["experiment"])
     trial = runs.first_with(exp, "filmstrip/filmstrip.json")
     steps = (runs.json(exp, trial, "filmstrip/filmstrip.json") or {}).get("steps_to_goal") if trial else None
@@ -115,31 +124,32 @@ def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
 
 
 def convergence_point(runs: Runs, claim: dict[str, str]) -> Estimate:
-    result = convergence(_curves(runs, claim["experiment"], claim))
+    """Stochastic (a mean curve over trials): needs MIN_TRIALS finished trials, judged on the
+    evaluations all of them reach."""
+    curves = _curves(runs, claim["experiment"], claim)
+    counts = finished_counts(curves)
+    require_trials(counts, _budget(runs, claim["experiment"], n=counts))
+    result = convergence(curves, curves.finished_seeds())
     if result is None:
-        raise NotJudged(f"no complete curves of {claim['experiment']}")
-    return Estimate(result.x, result.ci, fmt_convergence(result), _budget(runs, claim["experiment"], n=[result.n]),
-                    reach=result.last_x)
+        raise NotJudged(f"no evaluation that every finished trial of {claim['experiment']} reaches")
+    budget = f"{_budget(runs, claim['experiment'], n=[result.n])}, {at_text(curves, result.last_x)}"
+    return Estimate(result.x, result.ci, fmt_convergence(result), budget, reach=result.last_x)
 
 
-def _pair(runs: Runs, claim: dict[str, str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Both methods' finished trials on the evaluations they all reach: grid, A, B."""
+def _pair(runs: Runs, claim: dict[str, str]) -> tuple[Matched, str]:
+    """Both methods' finished trials (MIN_TRIALS each: every pair statistic is stochastic) on the
+    evaluations they all reach, and the budget text saying where they are judged."""
     a, b = _curves(runs, claim["experiment"], claim), _curves(runs, claim["baseline"], claim)
-    grid = np.intersect1d(a.grid, b.grid)
-    mats = [c.values[c.complete_seeds()][:, np.searchsorted(c.grid, grid)] for c in (a, b)]
-    grid, mats = complete(grid, *mats)
-    if not len(grid) or min(len(m) for m in mats) < 2:
-        raise NotJudged("needs at least 2 finished trials of each method on common evaluations")
-    return grid, mats[0], mats[1]
-
-
-def _pair_budget(runs: Runs, claim: dict[str, str], a: np.ndarray, b: np.ndarray) -> str:
-    return _budget(runs, claim["experiment"], claim["baseline"], n=[len(a), len(b)])
+    counts = finished_counts(a, b)
+    require_trials(counts, _budget(runs, claim["experiment"], claim["baseline"], n=counts))
+    pair = matched(a, b, runs=runs)
+    return pair, f"{_budget(runs, claim['experiment'], claim['baseline'], n=pair.counts)}, {pair.at}"
 
 
 def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
     """x from which A's mean return stays above B's; inf if A is not ahead at the end."""
-    grid, a, b = _pair(runs, claim)
+    pair, budget = _pair(runs, claim)
+    grid, (a, b) = pair.grid, pair.values
 
     def stat(x: np.ndarray, y: np.ndarray) -> float:
         index = ahead_from(x.mean(axis=0), y.mean(axis=0))
@@ -148,13 +158,13 @@ def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
     value = stat(a, b)
     ci = bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False)
     text = "not ahead at the end" if math.isinf(value) else f"ahead from {fmt(value)}"
-    return Estimate(value, (float(ci[0]), float(ci[1])), text + _ci_text(ci), _pair_budget(runs, claim, a, b),
-                    reach=float(grid[-1]))
+    return Estimate(value, (float(ci[0]), float(ci[1])), text + _ci_text(ci), budget, reach=float(grid[-1]))
 
 
 def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
     """Mean over evaluations with x >= ``from_x`` of std(B) - std(A) across trials."""
-    grid, a, b = _pair(runs, claim)
+    pair, budget = _pair(runs, claim)
+    grid, (a, b) = pair.grid, pair.values
     keep = grid >= float(claim["from_x"] or 0)
     if not keep.any():
         raise NotJudged(f"no evaluations at or after {claim['from_x']}")
@@ -164,29 +174,29 @@ def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
 
     value = stat(a, b)
     low, high = (float(v) for v in bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False))
-    return Estimate(value, (low, high), fmt_ci(value, (low, high)), _pair_budget(runs, claim, a, b),
-                    reach=float(grid[-1]))
+    return Estimate(value, (low, high), fmt_ci(value, (low, high)), budget, reach=float(grid[-1]))
 
 
 def p_improvement(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """P(A > B) over trials' ``final`` returns or ``auc`` (mean return over the curve)."""
-    a, b = (scores(runs, _curves(runs, name, claim)) for name in (claim["experiment"], claim["baseline"]))
-    x, y = getattr(a, claim["param"]), getattr(b, claim["param"])
-    if not len(x) or not len(y):
-        raise NotJudged("no finished trials to compare")
+    """P(A > B) over trials' ``final`` returns (at the largest common evaluation, not each arm's
+    own last) or ``auc`` (mean return over the common evaluations)."""
+    pair, budget = _pair(runs, claim)
+    x, y = ((m[:, -1] if claim["param"] == "final" else m.mean(axis=1)) for m in pair.values)
     value, ci = probability_of_improvement(x, y)
     text = f"{fmt_ci(value, ci, 3)} ({claim['param']}: {fmt(float(np.mean(x)))} vs {fmt(float(np.mean(y)))})"
-    return Estimate(value, ci, text, _budget(runs, claim["experiment"], claim["baseline"], n=[len(x), len(y)]),
-                    reach=min(a.last_x, b.last_x))
+    return Estimate(value, ci, text, budget, reach=float(pair.grid[-1]))
 
 
 def final_return(runs: Runs, claim: dict[str, str]) -> Estimate:
     """Mean over finished trials of the final evaluation's mean deterministic return (a baseline
-    checked against a published number)."""
-    per_trial = scores(runs, _curves(runs, claim["experiment"], claim)).final
-    if not len(per_trial):
-        raise NotJudged(f"no finished trials of {claim['experiment']}")
-    return _mean_estimate([float(v) for v in per_trial], "trial", _budget(runs, claim["experiment"], n=[len(per_trial)]))
+    checked against a published number), at the last evaluation all of them reach. Stochastic:
+    needs MIN_TRIALS finished trials."""
+    curves = _curves(runs, claim["experiment"], claim)
+    counts = finished_counts(curves)
+    require_trials(counts, _budget(runs, claim["experiment"], n=counts))
+    arm = matched(curves, runs=runs)
+    budget = f"{_budget(runs, claim['experiment'], n=arm.counts)}, {arm.at}"
+    return _mean_estimate([float(v) for v in arm.values[0][:, -1]], "trial", budget)
 
 
 def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
@@ -199,58 +209,32 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
     "convergence": convergence_point, "ahead_from": ahead_point, "std_gap": std_gap,
     "p_improvement": p_improvement, "study": study_metric, "final_return": final_return,
 }
-RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 
 
-# --------------------------------------------------------------------------- verdicts
-REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduced", "inconclusive",
-                                                     "not run at this budget")
-
-
-def verdict(rule: str, low: float, high: float, threshold: float, threshold_high: float = math.nan) -> str:
-    """Judge the interval [low, high] (the CI, or the point twice) against the claim's rule."""
-    if rule == "equal":
-        return REPRODUCED if low == high == threshold else NOT_REPRODUCED
-    on_side, off_side = {
-        "at_most": (high <= threshold, low > threshold),
-        "at_least": (low >= threshold, high < threshold),
-        "greater_than": (low > threshold, high <= threshold),
-        "between": (low >= threshold and high <= threshold_high, high < threshold or low > threshold_high),
-    }[rule]
-    return REPRODUCED if on_side else NOT_REPRODUCED if off_side else INCONCLUSIVE
-
-
-def _rule_text(claim: dict[str, str]) -> str:
-    words = {"at_most": "≤", "at_least": "≥", "greater_than": ">", "equal": "=", "between": "in"}
-    if claim["rule"] == "between":
-        return f"in [{claim['threshold']}, {claim['threshold_high']}]"
-    return f"{words[claim['rule']]} {claim['threshold']}"
-
-
-def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str]:
-    """(estimate, verdict, reason) for one claim row."""
+def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str, str | None]:
+    """(estimate, verdict, reason, budget text) for one claim row."""
     names = [n for n in (claim["experiment"], claim["baseline"]) if n]
     for name in names:
         budget = runs.experiment(name).budget
         if budget is None:
-            return None, NOT_RUN, f"no runs of {name}"
+            return None, NOT_RUN, f"no runs of {name}", None
         if BUDGET_ORDER.index(budget) < BUDGET_ORDER.index(claim["min_budget"]):
-            return None, NOT_RUN, f"{name} ran at budget {budget}; judged from budget {claim['min_budget']} up"
+            return None, NOT_RUN, f"{name} ran at budget {budget}; judged from budget {claim['min_budget']} up", None
     try:
         est = KINDS[claim["kind"]](runs, claim)
     except NotJudged as err:
-        return None, NOT_RUN, str(err)
+        return None, NOT_RUN, str(err), err.budget
     if claim["needs_x"] and est.reach < float(claim["needs_x"]):
         axis = claim["x_axis"] or DEFAULT_X_AXIS
-        return est, NOT_RUN, f"runs reach {axis} {fmt(est.reach)} < {fmt(float(claim['needs_x']))}"
+        return est, NOT_RUN, f"runs reach {axis} {fmt(est.reach)} < {fmt(float(claim['needs_x']))}", est.budget
     low, high = est.ci if not math.isnan(est.ci[0]) else (est.value, est.value)
     high_t = float(claim["threshold_high"]) if claim["threshold_high"] else math.nan
     if not math.isnan(est.ci[0]):
         basis = " (95% CI)"
     else:  # a count is exact; anything else from one trial or model has no interval
         basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
-    reason = f"suite value {_rule_text(claim)}{basis}"
-    return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason
+    reason = f"suite value {rule_text(claim)}{basis}"
+    return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason, est.budget
 
 
 def _is_number(text: str) -> bool:
@@ -279,14 +263,14 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     """The "paper vs suite" table: every claim of ``claims.csv`` with the suite's value and verdict."""
     rows, records = [], []
     for claim in read_claims(opts.paper_dir):
-        est, outcome, reason = judge(runs, claim)
-        rows.append([claim["claim"], claim["paper"], est.text if est else NA, est.budget if est else NA,
+        est, outcome, reason, budget = judge(runs, claim)
+        rows.append([claim["claim"], claim["paper"], est.text if est else NA, budget or NA,
                      outcome, reason, claim["source"]])
         records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],
                         "paper": claim["paper"], "paper_value": claim["paper_value"],
                         "paper_pm": claim["paper_pm"], "suite_value": est.value if est else None,
                         "ci_low": est.ci[0] if est else None, "ci_high": est.ci[1] if est else None,
-                        "suite": est.text if est else None, "budget": est.budget if est else None,
+                        "suite": est.text if est else None, "budget": budget,
                         "verdict": outcome, "reason": reason, "rule": claim["rule"],
                         "threshold": claim["threshold"], "source": claim["source"]})
     counts = pd.Series([r["verdict"] for r in records]).value_counts()

@@ -3,17 +3,21 @@ method the final return's mean and IQM and the mean return over the curve, each 
 stratified-bootstrap CI, and the probability that PL-LS improves on each baseline."""
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.load import Runs
-from plls_bench.report.returns import DEFAULT_X_AXIS, Scores, load_curves, scores
+from plls_bench.report.matched import NotJudged, matched
+from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, Scores, load_curves
 from plls_bench.report.stats import SCORE_RESAMPLES, SEED, probability_of_improvement, summarise
 from plls_bench.report.tables import NA, Table, fmt, fmt_ci
 
 CAPTION = (
-    "Per trial: final = mean return of the last evaluation (trials that stop earlier are left out), "
-    "curve = mean return over all evaluations (area under the curve / its length). Mean and IQM (mean of "
+    "Every method of a comparison is measured where all of them were: on the evaluations that every "
+    "finished trial (status done) of every method reaches, up to the x in the last column. Per trial: "
+    "final = mean return at that x, curve = mean return over those evaluations (area under the curve / "
+    "its length); a method run longer is not credited with its later evaluations. Mean and IQM (mean of "
     "the middle 50% of trials) as rliable.metrics computes them; P(PL-LS > method) = P(X > Y) + P(X = Y)/2 "
     f"over pairs of trials (rliable's probability of improvement). 95% CIs: percentile bootstrap, "
     f"{SCORE_RESAMPLES:,} resamples, random state {SEED}, trials resampled within each method "
@@ -23,7 +27,7 @@ CAPTION = (
 def _row(comparison: Entry, label: str, budget: str | None, own: Scores,
          method: Scores | None) -> tuple[list[str], dict]:
     record = {"figure": comparison.id, "method": label, "budget": budget, "trials": len(own.final),
-              "last_evaluation": own.last_x}
+              "compared_at": own.last_x}
     cells = [comparison.ref, label, budget or NA, str(len(own.final))]
     for name, values in (("final", own.final), ("curve", own.auc)):
         if len(values):
@@ -47,12 +51,31 @@ def _row(comparison: Entry, label: str, budget: str | None, own: Scores,
     return cells, record
 
 
+def matched_scores(runs: Runs, methods: list[Curves]) -> list[Scores]:
+    """Each method's finished trials scored on the evaluations all of them reach (no scores for a
+    method without finished trials, or for all when they share no evaluation)."""
+    present = [i for i, c in enumerate(methods) if c.finished_seeds().any()]
+    try:
+        pair = matched(*[methods[i] for i in present], runs=runs) if present else None
+    except NotJudged:
+        pair = None
+    out = []
+    for i, curves in enumerate(methods):
+        seeds = tuple(s for s, done in zip(curves.seeds, curves.finished_seeds()) if done)
+        if pair is None or i not in present:
+            out.append(Scores(curves.label, seeds, np.zeros(0), np.zeros(0), np.nan))
+            continue
+        values = pair.values[present.index(i)]
+        out.append(Scores(curves.label, seeds, values[:, -1], values.mean(axis=1), float(pair.grid[-1])))
+    return out
+
+
 def return_statistics(runs: Runs, entry: Entry, opts: Options, *, comparisons: tuple[Entry, ...]) -> Output:
     """One row per (comparison, method); the first source of each comparison is PL-LS."""
     rows, records, trials = [], [], {}
     for comparison in comparisons:
-        all_scores = [scores(runs, load_curves(runs, runs.experiment(s.experiment), s.label, DEFAULT_X_AXIS))
-                      for s in comparison.sources]
+        all_scores = matched_scores(runs, [load_curves(runs, runs.experiment(s.experiment), s.label, DEFAULT_X_AXIS)
+                                     for s in comparison.sources])
         method = all_scores[0]
         for source, own in zip(comparison.sources, all_scores):
             budget = runs.experiment(source.experiment).budget
@@ -62,6 +85,6 @@ def return_statistics(runs: Runs, entry: Entry, opts: Options, *, comparisons: t
             trials[f"{comparison.ref} {source.label}"] = len(own.final)
     columns = ["Figure", "Method", "Budget", "Trials", "Final return, mean [95% CI]", "Final return, IQM [95% CI]",
                "Mean return over the curve [95% CI]", "P(PL-LS > method), final [95% CI]",
-               "P(PL-LS > method), curve [95% CI]", "Last evaluation (iteration)"]
+               "P(PL-LS > method), curve [95% CI]", "Compared at (iteration)"]
     table = Table(f"{entry.ref}. {entry.title}", CAPTION, columns, rows, pd.DataFrame(records))
     return Output(table=table, trials=trials, empty=not any(trials.values()))

@@ -9,9 +9,10 @@ import pandas as pd
 from plls_bench.report.base import BASE_BLUE, PLLS_RED, Entry, Options, Output
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import empty_output, new_figure, suptitle
-from plls_bench.report.returns import load_curves, x_label
+from plls_bench.report.matched import NotJudged, matched
+from plls_bench.report.returns import Curves, load_curves, x_label
 from plls_bench.report.stats import align, band
-from plls_bench.report.tables import plural
+from plls_bench.report.tables import fmt, plural
 
 
 def _band_frame(series: str, experiment: str, x_name: str, grid: np.ndarray, values: np.ndarray) -> pd.DataFrame:
@@ -31,7 +32,10 @@ def _budgets(runs: Runs, entry: Entry) -> str:
 
 
 def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
-    """Mean return over trials against ``opts.x_axis``, one series per source."""
+    """Mean return over trials against ``opts.x_axis``, one series per source; a dashed line where
+    the sources are compared (the last evaluation every finished trial of each reaches) when some
+    curve goes further, and the random policy's mean episode return read from the data preset in
+    ``entry.references`` (``metrics/dataset.json``: the episodes its random-policy dataset came from)."""
     methods = [(s, load_curves(runs, runs.experiment(s.experiment), s.label, opts.x_axis)) for s in entry.sources]
     trials = {s.label: c.n for s, c in methods}
     title = f"{entry.title} ({_budgets(runs, entry)})"
@@ -47,6 +51,13 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
             note = f", {early} stop early" if early else ""
             _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{note})")
             frames.append(frame)
+    if opts.x_axis != "wall_s":  # wall time is interpolated per trial: no evaluation x is shared
+        _mark_common_x(ax, [c for _, c in methods if c.n and c.finished_seeds().any()])
+    for preset in entry.references:
+        if (frame := _random_line(runs, preset, methods, opts.x_axis)) is None:
+            continue
+        ax.plot(frame["x"], frame["mean"], color="grey", lw=1.0, ls=":", label=frame["series"].iloc[0])
+        frames.append(frame)
     first = next(c for _, c in methods if c.n)
     ax.set_xlabel(x_label(first.experiment, opts.x_axis))
     ax.set_ylabel("average return")
@@ -54,6 +65,35 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
     ax.legend(loc="best", fontsize=8)
     suptitle(fig, entry.ref, title, trials)
     return Output(fig, pd.concat(frames, ignore_index=True), trials=trials)
+
+
+def _mark_common_x(ax, curves: list[Curves]) -> None:
+    try:
+        common = float(matched(*curves).grid[-1]) if len(curves) > 1 else None
+    except NotJudged:
+        return
+    if common is not None and any(len(c.grid) and c.grid[-1] > common for c in curves):
+        ax.axvline(common, color="black", lw=0.8, ls="--", label=f"compared at {fmt(common)}")
+
+
+def _random_line(runs: Runs, preset: str, methods: list, x_axis: str) -> pd.DataFrame | None:
+    """A flat line at the random policy's mean episode return over the curves' x range; None (and
+    a gap) when the data run is missing or ran on another simulator engine than the curves."""
+    exp = runs.experiment(preset)
+    trial = runs.first_with(exp, "metrics/dataset.json")
+    meta = runs.json(exp, trial, "metrics/dataset.json") if trial else None
+    if not meta or not isinstance(meta.get("episode_return_mean"), (int, float)):
+        return None
+    backends = {c.experiment.cfg("env.backend") for _, c in methods if c.n}
+    if backends != {trial.cfg("env.backend")}:
+        runs.gap(exp, trial, f"random-policy returns from env.backend={trial.cfg('env.backend')}, curves from "
+                             f"{', '.join(sorted(map(str, backends)))}: no reference line")
+        return None
+    grid = np.concatenate([c.grid for _, c in methods if c.n])
+    label = f"random policy ({meta.get('episodes')} episodes): {fmt(float(meta['episode_return_mean']))}"
+    return pd.DataFrame({"series": label, "experiment": preset, "x_axis": x_axis, "x": [grid.min(), grid.max()],
+                         "n": meta.get("episodes"), "mean": float(meta["episode_return_mean"]),
+                         "std": meta.get("episode_return_std")})
 
 
 # --------------------------------------------------------------------------- losses

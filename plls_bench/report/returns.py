@@ -9,6 +9,7 @@ import numpy as np
 
 from plls_bench.metrics import EvalRow, iteration_label, parallel_envs
 from plls_bench.report.load import Experiment, Runs, Trial
+from plls_bench.runs import STATUS_DONE
 from plls_bench.report.stats import CURVE_RESAMPLES, align, bootstrap_ci, complete, convergence_index
 
 X_AXES = ("iteration", "env_steps", "wall_s", "env_steps_per_env")
@@ -26,6 +27,7 @@ class Curves:
     seeds: list[int] = field(default_factory=list)
     grid: np.ndarray = field(default_factory=lambda: np.zeros(0))
     values: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    env_steps: dict[float, float] = field(default_factory=dict)  # env steps at each x the trials logged
 
     @property
     def n(self) -> int:
@@ -34,6 +36,11 @@ class Curves:
     def complete_seeds(self) -> np.ndarray:
         """Mask of the trials that reach this method's last grid point (finished curves)."""
         return ~np.isnan(self.values[:, -1]) if self.n else np.zeros(0, dtype=bool)
+
+    def finished_seeds(self) -> np.ndarray:
+        """Mask of the trials whose run finished (status done): comparisons count only these."""
+        done = {t.seed for t in self.experiment.trials if t.state == STATUS_DONE}
+        return np.array([seed in done for seed in self.seeds], dtype=bool)
 
 
 def x_label(exp: Experiment, x_axis: str) -> str:
@@ -49,7 +56,7 @@ def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X
     curves = Curves(label, exp, x_axis)
     pairs = []
     for trial in exp.trials:
-        x, y = _trial_curve(runs, exp, trial, x_axis)
+        x, y = _trial_curve(runs, exp, trial, x_axis, curves.env_steps)
         if len(x):
             curves.seeds.append(trial.seed)
             pairs.append((x, y))
@@ -57,7 +64,9 @@ def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X
     return curves
 
 
-def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str) -> tuple[np.ndarray, np.ndarray]:
+def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str,
+                 env_steps: dict[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """A trial's (x, mean return) points; ``env_steps`` gains the env steps at each x."""
     points: dict[float, float] = {}
     skipped = duplicated = 0
     scale = float(parallel_envs(trial.cfg)) if x_axis == "env_steps_per_env" else 1.0
@@ -70,6 +79,8 @@ def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str) -> tupl
             continue
         duplicated += (x / scale) in points
         points[x / scale] = row.return_mean
+        if (steps := row.x("env_steps")) is not None:
+            env_steps[x / scale] = steps
     if skipped:
         runs.gap(exp, trial, f"metrics/eval.jsonl: {skipped} row(s) without {source_key} or returns skipped")
     if duplicated:
@@ -81,30 +92,14 @@ def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str) -> tupl
 # --------------------------------------------------------------------------- scores
 @dataclass(frozen=True)
 class Scores:
-    """Per-trial scores of one method: ``final`` (mean return at the last evaluation) and ``auc``
-    (mean return over all evaluations), over the trials that finished their curve."""
+    """Per-trial scores of one method: ``final`` (mean return at the last evaluation compared) and
+    ``auc`` (mean return over the evaluations compared), over its finished trials."""
 
     label: str
     seeds: tuple[int, ...]
     final: np.ndarray
     auc: np.ndarray
     last_x: float
-
-
-def scores(runs: Runs, curves: Curves) -> Scores:
-    """Scores of the trials reaching the method's last evaluation; shorter trials would be
-    judged earlier in training, so they are left out (and reported as a gap)."""
-    keep = curves.complete_seeds()
-    for seed, ok in zip(curves.seeds, keep):
-        if not ok:
-            trial = next(t for t in curves.experiment.trials if t.seed == seed)
-            runs.gap(curves.experiment, trial, "curve ends before the method's last evaluation: "
-                                               "left out of final-return statistics")
-    values = curves.values[keep]
-    last_x = float(curves.grid[-1]) if len(curves.grid) else math.nan
-    return Scores(curves.label, tuple(s for s, k in zip(curves.seeds, keep) if k),
-                  values[:, -1] if len(values) else np.zeros(0),
-                  np.nanmean(values, axis=1) if len(values) else np.zeros(0), last_x)
 
 
 # --------------------------------------------------------------------------- convergence
@@ -119,12 +114,13 @@ class Convergence:
     last_x: float
 
 
-def convergence(curves: Curves) -> Convergence | None:
-    """Convergence of the mean curve over the trials that reach the method's last evaluation
-    (as for :func:`scores`; a shorter trial cannot bend the tail). None without data."""
+def convergence(curves: Curves, keep: np.ndarray | None = None) -> Convergence | None:
+    """Convergence of the mean curve over the trials ``keep`` selects (default: those reaching the
+    method's last evaluation, as for :func:`scores`; a shorter trial cannot bend the tail), on the
+    evaluations all of them reach. None without data."""
     if not curves.n:
         return None
-    grid, (values,) = complete(curves.grid, curves.values[curves.complete_seeds()])
+    grid, (values,) = complete(curves.grid, curves.values[curves.complete_seeds() if keep is None else keep])
     if not len(grid):
         return None
 

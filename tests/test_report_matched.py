@@ -1,0 +1,100 @@
+"""Fair comparisons in the claims table, on hand-built runs: arms at different budgets are judged
+at the evaluations every trial of both reaches, and stochastic claims need 3 trials per arm."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from plls_bench.report import BY_ID, render_all
+from plls_bench.report.base import Options
+from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.load import Runs
+from plls_bench.report.matched import MIN_TRIALS
+from tests.synthetic_runs import finish, make_run, write_eval, write_params
+
+FIG18 = "PL-LS with PPO beats PPO on CarRacing"
+
+
+def arm(runs: Path, experiment: str, seeds: int, iterations: list[int], returns, *overrides: str) -> None:
+    """``seeds`` finished trials of ``experiment``; ``returns(seed, iteration)`` is an evaluation's mean."""
+    for seed in range(seeds):
+        run, cfg = make_run(runs, experiment, seed, "quick", f"budget.trials={seeds}", *overrides)
+        write_eval(run, cfg, iterations, [[returns(seed, i) - 1, returns(seed, i) + 1] for i in iterations])
+        write_params(run, 8802, 4394)
+        finish(run, cfg)
+
+
+def claims(runs: Path, out: Path) -> pd.DataFrame:
+    render_all(runs, out, only=["claims"])
+    return pd.read_csv(out / "tables" / "claims.csv").set_index("claim")
+
+
+def row(table: pd.DataFrame, text: str) -> pd.Series:
+    return table[table.index.str.startswith(text)].iloc[0]
+
+
+def test_arms_at_different_budgets_are_judged_at_the_common_evaluation(tmp_path: Path) -> None:
+    # PL-LS to 1,024,000 env steps (64 iterations of 16 x 1000): flat at -10 until iteration 10, then 200.
+    # PPO to 160,000 (10 iterations): 50 throughout. Each arm's own final says PL-LS wins (200 vs 50);
+    # at 160,000 env steps, the last evaluation both reach, PPO leads in every pair of trials.
+    arm(tmp_path / "runs", "carracing_plls_ppo", 3, list(range(0, 65, 2)),
+        lambda seed, i: -10.0 + seed if i <= 10 else 200.0 + seed, "budget.eval_every_env_steps=32000")
+    arm(tmp_path / "runs", "carracing_ppo", 3, list(range(0, 11, 2)), lambda seed, i: 50.0 + seed,
+        "budget.train_env_steps=160000", "budget.eval_every_env_steps=32000")
+    table = claims(tmp_path / "runs", tmp_path / "out")
+    beats = row(table, FIG18)
+    assert (beats["suite_value"], beats["ci_low"], beats["ci_high"]) == (0, 0, 0)
+    assert beats["verdict"] == "not reproduced"
+    assert beats["budget"] == "quick (3 + 3 trials), at 160,000 env steps (iteration 10)"
+    assert beats["suite"].endswith("(final: -9 vs 51)")  # the values at iteration 10, not 201 at iteration 64
+    variance = row(table, "PPO has the larger variance")  # judged on the same evaluations
+    assert variance["budget"] == beats["budget"]
+    stats = pd.read_csv(render_stats(tmp_path)).query("figure == 'fig18'").set_index("method")  # the stats table too
+    assert stats["compared_at"].tolist() == [10, 10] and stats.loc["PL-LS + PPO", "final_mean"] == -9
+    fig = BY_ID["fig18"].build(Runs(tmp_path / "runs"), BY_ID["fig18"], Options("iteration", PAPER_DIR)).figure
+    marks = [line for line in fig.axes[0].get_lines() if line.get_label() == "compared at 10"]
+    assert len(marks) == 1 and list(marks[0].get_xdata()) == [10, 10]
+
+
+def render_stats(root: Path) -> Path:
+    render_all(root / "runs", root / "stats", only=["stats"])
+    return root / "stats" / "tables" / "stats.csv"
+
+
+def test_carracing_curves_carry_the_random_policy_s_return(tmp_path: Path) -> None:
+    arm(tmp_path / "runs", "carracing_plls_ppo", 3, [0, 4, 8], lambda seed, i: 10.0 * i)
+    run, cfg = make_run(tmp_path / "runs", "carracing_data", 0)
+    run.write_json("metrics/dataset.json", {"episodes": 10, "episode_return_mean": -55.25, "episode_return_std": 18.0})
+    finish(run, cfg)
+    render_all(tmp_path / "runs", tmp_path / "out", only=["fig18"])
+    data = pd.read_csv(tmp_path / "out" / "figures" / "fig18.csv")
+    line = data[data["series"] == "random policy (10 episodes): -55.25"]
+    assert line[["x", "mean"]].values.tolist() == [[0, -55.25], [8, -55.25]]
+
+
+def test_too_few_trials_are_not_run_at_this_budget_and_say_what_is_missing(tmp_path: Path) -> None:
+    assert MIN_TRIALS == 3
+    arm(tmp_path / "runs", "carracing_plls_ppo", 1, list(range(0, 65, 4)), lambda seed, i: 3.0 * i)
+    arm(tmp_path / "runs", "carracing_ppo", 1, list(range(0, 65, 4)), lambda seed, i: 1.0 * i)
+    table = claims(tmp_path / "runs", tmp_path / "out")
+    for text in (FIG18, "PPO has the larger variance"):
+        judged = row(table, text)
+        assert judged["verdict"] == "not run at this budget"
+        assert judged["reason"] == "needs 3 trials per arm; has 1 + 1"
+        assert judged["budget"] == "quick (1 + 1 trials)" and pd.isna(judged["suite_value"])
+    converged = row(table, "PL-LS with PPO converged by 60,000")  # one arm, stochastic: 3 trials
+    assert (converged["verdict"], converged["reason"]) == ("not run at this budget", "needs 3 trials; has 1")
+    counted = row(table, "PL-LS with PPO: total parameters")  # deterministic: one trial is the count
+    assert counted["verdict"] == "not reproduced" and counted["suite_value"] == 8802
+
+
+def test_a_running_trial_does_not_count_and_disjoint_grids_are_not_compared(tmp_path: Path) -> None:
+    arm(tmp_path / "runs", "carracing_plls_ppo", 3, [1, 3, 5], lambda seed, i: 100.0 + seed)
+    arm(tmp_path / "runs", "carracing_ppo", 3, [0, 2, 4], lambda seed, i: 10.0 + seed)
+    table = claims(tmp_path / "runs", tmp_path / "out")
+    assert row(table, FIG18)["reason"] == ("no evaluation x that every finished trial of every arm reaches "
+                                           "(carracing_plls_ppo up to iteration 5; carracing_ppo up to iteration 4)")
+    run, cfg = make_run(tmp_path / "runs", "carracing_ppo", 2, "quick", "budget.trials=3")  # back to running
+    table = claims(tmp_path / "runs", tmp_path / "out2")
+    assert row(table, FIG18)["reason"] == "needs 3 trials per arm; has 3 + 2"
