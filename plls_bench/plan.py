@@ -22,6 +22,7 @@ from plls_bench.config import Config, ConfigError
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
 from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, stable_hash, variant_name
+from plls_bench.sweeps import Sweep
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
 
@@ -43,6 +44,11 @@ class PresetPlan:
     env_steps_per_trial: int               # policy-learning env steps (0 for non-RL presets)
     seconds: float | None = None           # estimated compute of the pending trials; None: unknown
     missing_rates: list[str] = field(default_factory=list)
+    overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
+
+    @property
+    def label(self) -> str:
+        return " ".join((self.experiment, *self.overrides))
 
     @property
     def pending(self) -> list[Trial]:
@@ -75,8 +81,8 @@ def load_rates(path: Path = THROUGHPUT_FILE) -> dict[str, float]:
     return {key: float(entry["value"]) for key, entry in data.get("rates", {}).items()}
 
 
-def preset_config(experiment: str, profile: str, runs_dir: str) -> Config:
-    return compose([f"+experiment={experiment}", f"budget={profile}", f"runs_dir={runs_dir}"])
+def preset_config(experiment: str, profile: str, runs_dir: str, overrides: tuple[str, ...] = ()) -> Config:
+    return compose([f"+experiment={experiment}", f"budget={profile}", f"runs_dir={runs_dir}", *overrides])
 
 
 def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
@@ -84,8 +90,19 @@ def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
     """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials."""
     presets = list_presets()
     chosen = select_presets(presets, only) if only else presets
+    return _costed([_plan_preset(name, profile, runs_dir) for name in chosen], rates)
+
+
+def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float] | None = None) -> list[PresetPlan]:
+    """A sweep (``conf/sweep/``): its preset's own runs (the arm of its own value), then one plan
+    per other value with that value's override; each value's V_a (or other artifact) is costed once."""
+    plans = [_plan_preset(sweep.preset, profile, runs_dir)]
+    plans += [_plan_preset(sweep.preset, profile, runs_dir, (sweep.override(v),)) for v in sweep.others]
+    return _costed(plans, rates)
+
+
+def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[PresetPlan]:
     rates = load_rates() if rates is None else rates
-    plans = [_plan_preset(name, profile, runs_dir) for name in chosen]
     plans.sort(key=lambda p: (runner_spec(p.runner).order, p.experiment))  # artifacts before their consumers
     costed: set[str] = set()
     for plan in plans:
@@ -93,17 +110,20 @@ def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
     return plans
 
 
-def _plan_preset(experiment: str, profile: str, runs_dir: str) -> PresetPlan:
-    first = preset_config(experiment, profile, runs_dir)
+def _plan_preset(experiment: str, profile: str, runs_dir: str, overrides: tuple[str, ...] = ()) -> PresetPlan:
+    """``overrides``: at most one ``key=value`` (a sweep value), which names the run dir's variant
+    as Hydra's ``override_dirname`` does (conf/config.yaml)."""
+    first = preset_config(experiment, profile, runs_dir, overrides)
     trials = []
     for seed in range(first.budget.trials):
         # the seed is a plain field that no other value interpolates: replace() equals composing seed=k
         cfg = dataclasses.replace(first, seed=seed)
-        path = run_dir_path(runs_dir, experiment, variant_name(cfg.variant, "", cfg.env.backend), seed)
+        variant = variant_name(cfg.variant, ",".join(overrides), cfg.env.backend)
+        path = run_dir_path(runs_dir, experiment, variant, seed)
         trials.append(Trial(seed, path, Run(path).is_done(config_hash(cfg)), cfg))
     rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
-                      first.budget.train_env_steps if rl else 0)
+                      first.budget.train_env_steps if rl else 0, overrides=overrides)
 
 
 # --------------------------------------------------------------------------- cost estimates

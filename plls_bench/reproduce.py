@@ -18,9 +18,10 @@ from plls_bench.composition import CONF_DIR, filmstrip_config
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError, FilmstripConfig
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
-from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile
+from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile, plan_sweep
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json
+from plls_bench.sweeps import load_sweep, sweep_names
 
 LAUNCHERS = ("local", "joblib", "slurm")
 # Smoke numbers check the pipeline, not the paper: the committed results/ is written only from
@@ -42,17 +43,18 @@ def launcher_overrides(launcher: str, jobs: int, extra: list[str]) -> list[str]:
 def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: list[str]) -> list[str]:
     seeds = ",".join(str(t.seed) for t in plan.pending)
     return [sys.executable, "-m", "plls_bench", "-m", f"+experiment={plan.experiment}",
-            f"budget={profile}", f"seed={seeds}", f"runs_dir={runs_dir}", *overrides]
+            f"budget={profile}", f"seed={seeds}", f"runs_dir={runs_dir}", *plan.overrides, *overrides]
 
 
 def format_plan(plans: list[PresetPlan], jobs: int) -> str:
     """The plan as a table, with estimated compute from measured throughput."""
-    rows = [f"{'preset':28s} {'runner':8s} {'to run':>9s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
+    width = max([28, *(len(p.label) for p in plans)])
+    rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
     total, unknown = 0.0, set()
     for p in plans:
         est = "n/a" if p.seconds is None else f"{p.seconds / 3600:.2f}"
         trials = f"{len(p.pending)}/{len(p.trials)}"
-        rows.append(f"{p.experiment:28s} {p.runner:8s} {trials:>9s} {p.env_steps_per_trial:>15,d} {est:>10s}")
+        rows.append(f"{p.label:{width}s} {p.runner:8s} {trials:>9s} {p.env_steps_per_trial:>15,d} {est:>10s}")
         total += p.seconds or 0.0
         unknown.update(p.missing_rates)
     pending = sum(len(p.pending) for p in plans)
@@ -70,15 +72,15 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
     failed = []
     for plan in plans:
         if not plan.pending:
-            print(f"[reproduce] {plan.experiment}: all {len(plan.trials)} trial(s) already done", flush=True)
+            print(f"[reproduce] {plan.label}: all {len(plan.trials)} trial(s) already done", flush=True)
             continue
         start = time.perf_counter()
         done = subprocess.run(multirun_command(plan, profile, runs_dir, overrides))
         status = "ok" if done.returncode == 0 else f"FAILED (exit {done.returncode})"
-        print(f"[reproduce] {plan.experiment}: {status}; ran {len(plan.pending)} trial(s), "
+        print(f"[reproduce] {plan.label}: {status}; ran {len(plan.pending)} trial(s), "
               f"{len(plan.trials) - len(plan.pending)} already done, {time.perf_counter() - start:.0f}s", flush=True)
         if done.returncode != 0:
-            failed.append(plan.experiment)
+            failed.append(plan.label)
     return failed
 
 
@@ -102,7 +104,7 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
     failed, filmed = [], _filmstrip_presets()
     for plan in plans:
         strip = filmed.get(plan.experiment)
-        if strip is None or not plan.trials:
+        if strip is None or not plan.trials or plan.overrides:  # a sweep's variants are not filmed
             continue
         if not runner_spec(plan.runner).films:  # a filmstrip config that lists a preset with no policy
             print(f"[reproduce] {plan.experiment}: listed in conf/filmstrip/{plan.env}.yaml, but runner "
@@ -163,6 +165,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
     parser.add_argument("--only", nargs="+", metavar="PRESET",
                         help="run only these presets (names or globs, e.g. 'mountaincar_*')")
+    parser.add_argument("--sweep", metavar="NAME",
+                        help=f"run a declared sweep instead of whole presets (conf/sweep/NAME.yaml: {', '.join(sweep_names())}): "
+                             "its preset's own runs and one variant per other value")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
@@ -173,6 +178,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
     bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
+    if args.sweep and args.only:
+        parser.error("--sweep and --only: give one (a sweep runs only its own preset)")
     if bad:
         parser.error(f"--hydra takes hydra.* KEY=VALUE settings, got {', '.join(bad)}")
     if args.out is None:
@@ -186,7 +193,10 @@ def main(argv: list[str] | None = None) -> int:
         check_writable_dir(args.runs, "--runs")  # before any launch: a job could not even log its failure
         if not args.no_report:
             check_writable_dir(args.out, "--out")
-        plans = plan_profile(args.profile, args.runs, args.only)
+        if args.sweep:
+            plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs)
+        else:
+            plans = plan_profile(args.profile, args.runs, args.only)
     except ConfigError as err:
         print(f"reproduce: {err}", file=sys.stderr)
         return 2

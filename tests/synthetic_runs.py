@@ -44,10 +44,10 @@ def _compose(experiment: str, budget: str, runs_dir: str, *overrides: str) -> Co
 
 
 def make_run(runs_dir: Path, experiment: str, seed: int, budget: str = "quick",
-             *overrides: str) -> tuple[Run, Config]:
+             *overrides: str, variant: str = "default") -> tuple[Run, Config]:
     """A prepared run dir (config.json, provenance.json, status running) for ``experiment``."""
     cfg = dataclasses.replace(_compose(experiment, budget, str(runs_dir), *overrides), seed=seed)
-    run = Run(run_dir_path(runs_dir, experiment, "default", seed))
+    run = Run(run_dir_path(runs_dir, experiment, variant, seed))
     run.prepare(cfg, config_hash(cfg))
     run.write_status("running", config_hash=config_hash(cfg))
     return run, cfg

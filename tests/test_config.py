@@ -7,6 +7,7 @@ import pytest
 
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError
+from plls_bench.sweeps import load_sweep
 from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path
 
 
@@ -23,6 +24,9 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"hydra/launcher={name}"]
     if group == "study":  # a MountainCar latent-space study needs V_a
         return [f"+study={name}", "runner=study", "repr/action=vae"]
+    if group == "sweep":  # not a run-config group: a declared sweep, checked by composing one of its values
+        sweep = load_sweep(name)
+        return [f"+experiment={sweep.preset}", sweep.override(sweep.others[0])]
     if group == "filmstrip":  # one per task, named after it
         return [f"+filmstrip={name}", f"env={name}"]
     if group == "algo/exploration":  # PPO's exploration settings; none goes with the other learners

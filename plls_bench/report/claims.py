@@ -14,7 +14,6 @@ and two arms are compared on the evaluations every finished trial of both reache
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -29,20 +28,12 @@ from plls_bench.report.matched import Matched, NotJudged, at_text, finished_coun
 from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_curves
 from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement, summarise
 from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
-from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, rule_text,
-                                        verdict)
+from plls_bench.report.sweep_claim import sweep_best
+from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, Estimate,
+                                        rule_text, verdict)
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 NAN2 = (math.nan, math.nan)
-
-
-@dataclass(frozen=True)
-class Estimate:
-    value: float
-    ci: tuple[float, float]
-    text: str      # the suite's value as shown
-    budget: str    # budgets and trial counts behind it
-    reach: float = math.inf  # furthest x the runs reached on the claim's axis
 
 
 # --------------------------------------------------------------------------- measurements
@@ -208,6 +199,7 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
     "repr_mse": repr_mse, "param_count": param_count, "steps_to_goal": steps_to_goal,
     "convergence": convergence_point, "ahead_from": ahead_point, "std_gap": std_gap,
     "p_improvement": p_improvement, "study": study_metric, "final_return": final_return,
+    "sweep_best": sweep_best,
 }
 
 

@@ -29,6 +29,16 @@ DEFAULT_VARIANT = "default"
 # A profile's own runs of a preset live in ``default``, or in ``env.backend=<b>`` when the profile
 # runs the task on another simulator engine (runs.variant_name): both are the preset's default runs.
 DEFAULT_VARIANTS = tuple(variant_name("auto", "", backend) for backend in ENV_BACKENDS)
+
+
+def variant_dirs(variant: str) -> tuple[str, ...]:
+    """The run-dir variants that hold ``name/variant``'s runs: for ``default``, every profile's
+    default runs; for an override (``repr.action.latent_dim=8``, a sweep value), that override as
+    each backend names it (``repr.action.latent_dim=8,env.backend=envpool`` where a profile runs
+    the task on envpool)."""
+    if variant == DEFAULT_VARIANT:
+        return DEFAULT_VARIANTS
+    return tuple(dict.fromkeys(variant_name("auto", variant, backend) for backend in ENV_BACKENDS))
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
 
 
@@ -103,7 +113,8 @@ class Runs:
 
     # experiments --------------------------------------------------------------
     def experiment(self, name: str, variant: str = DEFAULT_VARIANT) -> Experiment:
-        """The consistent trials of ``name/variant``; gaps for missing, empty or odd run dirs."""
+        """The consistent trials of ``name/variant`` (:func:`variant_dirs`); gaps for missing,
+        empty or odd run dirs."""
         key = (name, variant)
         if key not in self._experiments:
             self._experiments[key] = self._scan(name, variant)
@@ -111,7 +122,7 @@ class Runs:
 
     def _scan(self, name: str, variant: str) -> Experiment:
         exp = Experiment(name, variant)
-        variants = DEFAULT_VARIANTS if variant == DEFAULT_VARIANT else (variant,)
+        variants = variant_dirs(variant)
         roots = [(self.root / name / v, "run") for v in variants]
         if self.records_root is not None:
             roots += [(self.records_root / name / v, "record") for v in variants]

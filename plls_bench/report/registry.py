@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from functools import partial
 
-from plls_bench.report import claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent
+from plls_bench.report import (claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent,
+                               fig_sweep)
 from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
 
 S = Source
@@ -77,6 +78,11 @@ ENTRIES: tuple[Entry, ...] = (
     FIG21,
     Entry("fig22", "Fig. 22", "Cheetah run, the learned PL-LS + DBC policy", (CH_PLLS,), fig_images.filmstrip,
           "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
+    # An ablation the paper reports only in words (Sec. 5.2: N_e = 32 "performs the best"); the arms are the
+    # values of conf/sweep/ne.yaml: the preset's own runs for 32, the override's variant for the others.
+    Entry("sweep_ne", "Sec. 5.2 (N_e sweep)", "CarRacing, PL-LS + PPO against the size N_e of V_a's latent action",
+          (CR_PLLS,), partial(fig_sweep.sweep_figure, sweep="ne"), f"{EVAL}; metrics/repr_test.json",
+          size=(15.0, 4.8)),
     Entry("stats", "Return statistics", "IQM, mean and probability of improvement for every return comparison",
           tuple(dict.fromkeys(s for e in (FIG10, FIG10_GSDE, FIG18, FIG20, FIG21) for s in e.sources)),
           partial(comparisons.return_statistics, comparisons=(FIG10, FIG10_GSDE, FIG18, FIG20, FIG21)), EVAL,

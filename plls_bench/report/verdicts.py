@@ -3,10 +3,22 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduced", "inconclusive",
                                                      "not run at this budget")
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The suite's value for one claim and the 95% CI it is judged on."""
+
+    value: float
+    ci: tuple[float, float]
+    text: str      # the suite's value as shown
+    budget: str    # budgets and trial counts behind it
+    reach: float = math.inf  # furthest x the runs reached on the claim's axis
 
 
 def verdict(rule: str, low: float, high: float, threshold: float, threshold_high: float = math.nan) -> str:

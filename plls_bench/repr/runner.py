@@ -14,7 +14,7 @@ import torch
 from plls_bench.config import Config
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.keys import NAMES
-from plls_bench.repr.store import ensure_representations
+from plls_bench.repr.store import Representations, ensure_representations
 from plls_bench.runs import Run, read_json
 
 log = logging.getLogger(__name__)
@@ -25,15 +25,13 @@ def run(cfg: Config, run: Run) -> None:
     ``metrics/repr_train.jsonl``, ``repr_test.json``, ``params.json``, ``architecture.json`` and
     ``samples/{state,action}_reconstructions.npz`` into the run."""
     reprs = ensure_representations(cfg)
-    rows, tests, modules, examples = [], {}, {}, {}
+    rows, modules, examples = [], {}, {}
     for which, model in (("state", reprs.state_vae), ("action", reprs.action_vae)):
         if model is None:
             continue
         artifact = reprs.artifacts[which]
         model.requires_grad_(True)  # counted as trained here, in the offline phase
         rows += [{"model": which, **row} for row in read_json(artifact.path / "history.json")]
-        tests[which] = {**read_json(artifact.path / "test.json"), "artifact": str(artifact.path),
-                        "built_by_this_run": artifact.built}
         run.write_bytes(f"samples/{which}_reconstructions.npz", (artifact.path / "samples.npz").read_bytes())
         device = next(model.parameters()).device
         x = torch.zeros(1, *model.image_shape) if which == "state" else torch.zeros(1, model.action_dim)
@@ -43,9 +41,17 @@ def run(cfg: Config, run: Run) -> None:
         examples[f"{name}.decoder"] = torch.zeros(1, model.latent_dim, device=device)
     run.write_bytes("metrics/repr_train.jsonl",
                     "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
-    run.write_json("metrics/repr_test.json", tests)
+    run.write_json("metrics/repr_test.json", model_test_metrics(reprs))
     run.write_json("metrics/params.json", parameter_counts(modules, trainable=modules))
     run.write_json("metrics/architecture.json", architecture_summary(modules, examples))
-    for which, metrics in tests.items():
+    for which, metrics in model_test_metrics(reprs).items():
         log.info("%s test MSE %.6g (mean predictor %.6g) from %s", NAMES[which], metrics["test_mse"],
                  metrics["mean_predictor_mse"], metrics["artifact"])
+
+
+def model_test_metrics(reprs: Representations) -> dict[str, dict]:
+    """``metrics/repr_test.json``: per model (``state`` / ``action``) its artifact's test metrics,
+    the artifact's path and whether this run built it. Runners that train a policy on the models
+    write it too, so a sweep over a model's settings finds each model's MSE in its own runs."""
+    return {which: {**read_json(artifact.path / "test.json"), "artifact": str(artifact.path),
+                    "built_by_this_run": artifact.built} for which, artifact in reprs.artifacts.items()}

@@ -24,6 +24,7 @@ from plls_bench.devices import resolve_device
 from plls_bench.evaluate import run_episodes
 from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
+from plls_bench.repr.runner import model_test_metrics
 from plls_bench.repr.store import ensure_representations
 from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds, sub_seed
@@ -99,6 +100,8 @@ class PPOTrainer:
     def setup(self) -> None:
         cfg, ppo = self.cfg, self.ppo
         reprs = ensure_representations(cfg)  # V_s / V_a built if missing, loaded once for both envs
+        if reprs.artifacts and not (self.run.metrics_dir / "repr_test.json").is_file():  # first start only
+            self.run.write_json("metrics/repr_test.json", model_test_metrics(reprs))  # each N_e's V_a MSE (README)
         self.train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, self.seeds.train, reprs), ppo)
         self.eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes),
                                                             self.seeds.eval, reprs), ppo)

@@ -1,0 +1,131 @@
+"""The N_e sweep (conf/sweep/ne.yaml): its plan and cost, the collector's arms, the claims row
+"N_e = 32 performs the best" and the sweep figure, on hand-built runs and (slow) on a real
+two-value smoke sweep."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from plls_bench.config import ConfigError
+from plls_bench.plan import plan_sweep
+from plls_bench.report import render_all
+from plls_bench.report.load import Runs
+from plls_bench.report.matched import NotJudged
+from plls_bench.report.sweep_claim import sweep_best
+from plls_bench.sweeps import load_sweep
+from tests.conftest import REPO_ROOT
+from tests.synthetic_runs import finish, make_run, write_eval, write_repr
+
+CLAIM = "N_e = 32 performs the best"
+PRESET = "carracing_plls_ppo"
+
+
+def test_the_ne_sweep_is_declared_once_with_the_presets_own_value() -> None:
+    sweep = load_sweep("ne")
+    assert (sweep.preset, sweep.key, sweep.base) == (PRESET, "repr.action.latent_dim", 32)
+    assert sweep.others == (3, 8, 16, 64) and sweep.arm_variant(32) is None
+    assert sweep.arm_variant(8) == "repr.action.latent_dim=8"
+    with pytest.raises(ConfigError, match="--sweep: unknown sweep 'nope'"):
+        load_sweep("nope")
+
+
+def test_plan_gives_each_value_its_variant_and_its_own_va(tmp_path: Path) -> None:
+    plans = plan_sweep(load_sweep("ne"), "quick", str(tmp_path), rates={})
+    assert [p.overrides for p in plans] == [(), *[(f"repr.action.latent_dim={v}",) for v in (3, 8, 16, 64)]]
+    dirs = [p.trials[0].run_dir.relative_to(tmp_path).parent.as_posix() for p in plans]
+    assert dirs[0] == f"{PRESET}/env.backend=envpool"  # quick runs CarRacing on envpool
+    assert dirs[2] == f"{PRESET}/repr.action.latent_dim=8,env.backend=envpool"
+    assert all(len(p.trials) == 3 for p in plans)
+    # each value trains its own V_a: five distinct rate-free workloads name repr_action once per value
+    keys = {f"{p.label}": p.missing_rates for p in plans}
+    assert all("repr_action/carracing" in missing for missing in keys.values()), keys
+
+
+def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 3) -> None:
+    """``trials`` finished runs of the N_e = ``value`` arm (the preset's own runs for 32), flat
+    at -20 until iteration 4 then at ``finals[seed]``; V_a's test MSE ``mse``."""
+    variant = "default" if value == 32 else f"repr.action.latent_dim={value}"
+    overrides = () if value == 32 else (f"repr.action.latent_dim={value}",)
+    for seed in range(trials):
+        run, cfg = make_run(runs, PRESET, seed, "quick", "budget.trials=3", *overrides, variant=variant)
+        iterations = [0, 2, 4, 6, 8]
+        write_eval(run, cfg, iterations, [[-20.0 if i <= 4 else finals[seed]] * 2 for i in iterations])
+        write_repr(run, "action", 2, mse, artifact=f"va-{value}")
+        finish(run, cfg)
+
+
+def claim_row(runs: Path, out: Path) -> pd.Series:
+    render_all(runs, out, only=["claims"])
+    table = pd.read_csv(out / "tables" / "claims.csv").set_index("claim")
+    return table[table.index.str.startswith(CLAIM)].iloc[0]
+
+
+def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    for value, level in ((3, 0.0), (8, 10.0), (16, 20.0), (32, 100.0), (64, 30.0)):
+        arm(runs, value, [level, level + 1, level + 2], mse=0.001 * value)
+    row = claim_row(runs, tmp_path / "out")
+    assert row["verdict"] == "reproduced", row["reason"]
+    assert (row["suite_value"], row["ci_low"]) == (1.0, 1.0)
+    assert row["budget"].startswith("quick (3 + 3 + 3 + 3 + 3 trials), at ")
+    assert "v=64 1 [1, 1]" in row["suite"]
+    render_all(runs, tmp_path / "out", only=["sweep_ne"])
+    data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv")
+    final = data.query("panel == 'final'").set_index("value")
+    assert final.loc[32, "mean"] == 101.0 and final.loc[8, "variant"] == "repr.action.latent_dim=8"
+    mse = data.query("panel == 'va_test_mse' and series == 'z sampled'").set_index("value")
+    assert mse["mean"].to_dict() == pytest.approx({v: 0.001 * v for v in (3, 8, 16, 32, 64)})
+
+
+def test_claim_not_reproduced_when_another_value_beats_32(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    for value, level in ((3, 0.0), (8, 500.0), (16, 20.0), (32, 100.0), (64, 30.0)):
+        arm(runs, value, [level, level + 1, level + 2], mse=0.01)
+    row = claim_row(runs, tmp_path / "out")
+    assert row["verdict"] == "not reproduced"
+    assert row["suite_value"] == 0.0 and "v=8 0 [0, 0]" in row["suite"]
+
+
+def test_claim_not_run_names_the_missing_values_and_the_trial_count(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    for value in (32, 8):
+        arm(runs, value, [1.0, 2.0, 3.0], mse=0.01)
+    row = claim_row(runs, tmp_path / "out")
+    assert row["verdict"] == "not run at this budget"
+    assert row["reason"].startswith("no runs of repr.action.latent_dim = 3, 16, 64 (python -m plls_bench.reproduce")
+    for value in (3, 16, 64):
+        arm(runs, value, [1.0, 2.0, 3.0], mse=0.01, trials=1)
+    row = claim_row(runs, tmp_path / "out2")
+    assert row["reason"] == "needs 3 trials per arm; has 1 + 3 + 1 + 3 + 1"  # in the order 3, 8, 16, 32, 64
+
+
+SMOKE = [sys.executable, "-m", "plls_bench", "-m", f"+experiment={PRESET}", "budget=smoke", "progress=false"]
+
+
+@pytest.mark.slow
+def test_two_value_smoke_sweep_end_to_end(tmp_path: Path) -> None:
+    """The base preset (N_e = 32) and the override N_e = 8 as multiruns at smoke budget: each lands
+    in its own variant with its own V_a, and the collector finds both in the figure's data."""
+    runs = tmp_path / "runs"
+    for extra in ([], ["repr.action.latent_dim=8"]):
+        done = subprocess.run([*SMOKE, f"runs_dir={runs}", "seed=0", *extra], cwd=REPO_ROOT,
+                              capture_output=True, text=True, timeout=1800)
+        assert done.returncode == 0, done.stderr[-3000:]
+    assert (runs / PRESET / "default" / "seed=0" / "metrics" / "repr_test.json").is_file()
+    assert (runs / PRESET / "repr.action.latent_dim=8" / "seed=0" / "metrics" / "repr_test.json").is_file()
+    assert len([p for p in (runs / "artifacts" / "repr_action").iterdir() if p.is_dir()]) == 2  # V_a per N_e, by key
+    out = tmp_path / "out"
+    render_all(runs, out, only=["sweep_ne", "claims"], records_dir=None)
+    data = pd.read_csv(out / "figures" / "sweep_ne.csv")
+    for panel in ("final", "mean", "va_test_mse"):
+        assert set(data.query(f"panel == '{panel}'")["value"]) == {8, 32}, panel
+    assert set(data.query("panel == 'va_test_mse'")["series"]) == {"z sampled", "decode(mu)"}
+    row = claim_row(runs, tmp_path / "out2")
+    assert row["verdict"] == "not run at this budget"
+    assert row["reason"] == "carracing_plls_ppo ran at budget smoke; judged from budget quick up"
+    with pytest.raises(NotJudged, match="no runs of repr.action.latent_dim = 3, 16, 64"):
+        sweep_best(Runs(runs), {"param": "ne", "x_axis": ""})
