@@ -19,6 +19,7 @@ from plls_bench.runner import execute
 from plls_bench.runs import Run, config_hash, read_json, run_dir_path
 from plls_bench.train import ppo
 from tests.conftest import compose_preset
+from tests.synthetic_runs import make_run
 from tests.test_reproduce import reproduce
 
 KEY = Path("default") / "seed=0"
@@ -63,6 +64,25 @@ def test_an_unfinished_dbc_run_is_not_carried(tmp_path: Path, all_budgets: None)
     done = export_records(runs)
     assert done.skipped == ["cheetah_dbc/default/seed=0: status running (DBC replay too large to carry)"]
     assert not (tmp_path / "results" / "records").exists()
+
+
+def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An unfinished PPO run is carried with its checkpoint, or not at all (a file over the cap)."""
+    runs = tmp_path / "results" / "runs"
+    run, cfg = make_run(runs, "mountaincar_ppo", 0)
+    run.log("eval", {"iteration": 0, "return_mean": 1.0})
+    run.write_bytes("checkpoints/ppo-0000002.zip", b"w" * 2**20)
+    run.write_json("checkpoints/latest.json", {"model": "ppo-0000002.zip", "normalization": None,
+                                               "progress": {"iteration": 2}, "rng": {}})
+    monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**19)
+    done = export_records(runs)
+    assert done.partial == [] and done.skipped == [
+        "mountaincar_ppo/default/seed=0: status running (checkpoints/ppo-0000002.zip over 0 MiB, not carried)"]
+    monkeypatch.undo()
+    assert export_records(runs).partial == ["mountaincar_ppo/default/seed=0"]
+    marker = read_json(tmp_path / "results" / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY / "partial.json")
+    assert marker["iteration"] == 2 and marker["commit"] == "checkpoints/latest.json"
+    assert "metrics/eval.jsonl" in marker["files"] and "checkpoints/ppo-0000002.zip" in marker["files"]
 
 
 @pytest.mark.slow
@@ -154,3 +174,22 @@ def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_r
 
     again = export_records(runs)
     assert again.written == ["mountaincar_ppo/default/seed=0"] and not partial.exists(), "done replaces partial"
+
+
+@pytest.mark.slow
+def test_a_recorded_dbc_policy_keeps_its_actor_alone_and_films_the_same(
+        tmp_path: Path, all_budgets: None, one_torch_thread: None) -> None:
+    from plls_bench.train.dbc_state import POLICY
+
+    runs = tmp_path / "results" / "runs"
+    run_dir = run_dir_path(runs, "cheetah_plls_dbc", "default", 0)
+    assert execute(compose_preset("cheetah_plls_dbc", runs), run_dir) == "done"
+    original = make_filmstrip(run_dir, tmp_path / "strip_run", device="cpu", max_steps=20)
+    export_records(runs)
+    record = tmp_path / "results" / "records" / "cheetah_plls_dbc" / KEY
+    assert (record / POLICY).stat().st_size < (run_dir / "checkpoints" / "dbc.pt").stat().st_size
+    assert not list(record.rglob("dbc.pt")) and not list(record.rglob("chunk_*")), "no optimisers, no replay"
+    shutil.rmtree(runs)
+    meta = make_filmstrip(record, tmp_path / "strip_record", device="cpu", max_steps=20)
+    assert meta["checkpoint"] == "dbc_policy.pt" and meta["episode_return"] == original["episode_return"]
+    assert (tmp_path / "strip_record" / "frames.npz").read_bytes() == (tmp_path / "strip_run" / "frames.npz").read_bytes()

@@ -110,11 +110,11 @@ def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple
     if found is None:
         return "no checkpoint to carry"
     files, iteration = found
-    oversize = [rel for rel in files if (run_dir / rel).stat().st_size > MAX_FILE_BYTES]
-    if oversize:
-        return f"{', '.join(oversize)} over {MAX_FILE_BYTES // 2**20} MiB, not carried"
     contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
     contents.update({rel: run_dir / rel for rel in files})
+    oversize = [rel for rel, path in contents.items() if _size(path) > MAX_FILE_BYTES]
+    if oversize:  # a run resumed without one of them would lose its rows or its checkpoint
+        return f"{', '.join(oversize)} over {MAX_FILE_BYTES // 2**20} MiB, not carried"
     state = (read_json(run_dir / "status.json") or {}).get("state")
     marker = {"config_hash": (read_json(run_dir / "config.json") or {}).get("config_hash"), "state": state,
               "iteration": iteration, "files": [f for f in contents if f != "status.json"], "commit": files[-1]}
