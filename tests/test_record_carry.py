@@ -72,7 +72,8 @@ def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.
     run, cfg = make_run(runs, "mountaincar_ppo", 0)
     run.log("eval", {"iteration": 0, "return_mean": 1.0})
     run.write_bytes("checkpoints/ppo-0000002.zip", b"w" * 2**20)
-    run.write_json("checkpoints/latest.json", {"model": "ppo-0000002.zip", "normalization": None,
+    run.write_bytes("checkpoints/vecnormalize-0000002.json", b"{}")
+    run.write_json("checkpoints/latest.json", {"model": "ppo-0000002.zip", "normalization": "vecnormalize-0000002.json",
                                                "progress": {"iteration": 2}, "rng": {}})
     monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**19)
     done = export_records(runs)
@@ -82,7 +83,8 @@ def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.
     assert export_records(runs).partial == ["mountaincar_ppo/default/seed=0"]
     marker = read_json(tmp_path / "results" / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY / "partial.json")
     assert marker["iteration"] == 2 and marker["commit"] == "checkpoints/latest.json"
-    assert "metrics/eval.jsonl" in marker["files"] and "checkpoints/ppo-0000002.zip" in marker["files"]
+    assert {"metrics/eval.jsonl", "checkpoints/ppo-0000002.zip", "checkpoints/vecnormalize-0000002.json",
+            "checkpoints/latest.json"} <= set(marker["files"]), "VecNormalize statistics travel with the checkpoint"
 
 
 @pytest.mark.slow
