@@ -2,7 +2,8 @@
 
 Every preset of a profile is composed exactly as ``python -m plls_bench`` will compose it, so the
 run dirs and config hashes here are the ones the runner checks: a trial counted as done here is
-one the runner will skip. Cost estimates use throughput measured on a reference machine
+one the runner will skip, or one a committed record holds (``plls_bench.records``), which
+``reproduce`` does not launch. Cost estimates use throughput measured on a reference machine
 (``bench/throughput.json``, written by ``bench/throughput.py``); shared artifacts (datasets,
 representations) are costed once, by the first preset that needs them.
 """
@@ -19,6 +20,7 @@ from typing import Any
 from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
+from plls_bench.records.layout import is_recorded, recorded_artifact, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
 from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, stable_hash, variant_name
@@ -33,6 +35,7 @@ class Trial:
     run_dir: Path
     done: bool                                    # status.json says done for this exact config
     cfg: Config = field(repr=False, compare=False)  # the config the runner will get
+    recorded: bool = False                        # a committed record says done for this config
 
 
 @dataclass
@@ -45,6 +48,7 @@ class PresetPlan:
     seconds: float | None = None           # estimated compute of the pending trials; None: unknown
     missing_rates: list[str] = field(default_factory=list)
     overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
+    count_records: bool = True             # a recorded trial is done (reproduce --rerun-recorded: not)
 
     @property
     def label(self) -> str:
@@ -52,7 +56,12 @@ class PresetPlan:
 
     @property
     def pending(self) -> list[Trial]:
-        return [t for t in self.trials if not t.done]
+        return [t for t in self.trials if not (t.done or (t.recorded and self.count_records))]
+
+    @property
+    def recorded(self) -> int:
+        """Trials a committed record holds done (with this config)."""
+        return sum(t.recorded for t in self.trials)
 
 
 def list_presets() -> list[str]:
@@ -86,18 +95,21 @@ def preset_config(experiment: str, profile: str, runs_dir: str, overrides: tuple
 
 
 def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
-                 rates: dict[str, float] | None = None) -> list[PresetPlan]:
-    """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials."""
+                 rates: dict[str, float] | None = None, count_records: bool = True) -> list[PresetPlan]:
+    """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials; a
+    trial done in the committed records beside ``runs_dir`` counts as done unless not ``count_records``."""
     presets = list_presets()
     chosen = select_presets(presets, only) if only else presets
-    return _costed([_plan_preset(name, profile, runs_dir) for name in chosen], rates)
+    return _costed([_plan_preset(name, profile, runs_dir, count_records) for name in chosen], rates)
 
 
-def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float] | None = None) -> list[PresetPlan]:
+def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float] | None = None,
+               count_records: bool = True) -> list[PresetPlan]:
     """A sweep (``conf/sweep/``): its preset's own runs (the arm of its own value), then one plan
     per other value with that value's override; each value's V_a (or other artifact) is costed once."""
-    plans = [_plan_preset(sweep.preset, profile, runs_dir)]
-    plans += [_plan_preset(sweep.preset, profile, runs_dir, (sweep.override(v),)) for v in sweep.others]
+    plans = [_plan_preset(sweep.preset, profile, runs_dir, count_records)]
+    plans += [_plan_preset(sweep.preset, profile, runs_dir, count_records, (sweep.override(v),))
+              for v in sweep.others]
     return _costed(plans, rates)
 
 
@@ -110,20 +122,23 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
     return plans
 
 
-def _plan_preset(experiment: str, profile: str, runs_dir: str, overrides: tuple[str, ...] = ()) -> PresetPlan:
+def _plan_preset(experiment: str, profile: str, runs_dir: str, count_records: bool,
+                 overrides: tuple[str, ...] = ()) -> PresetPlan:
     """``overrides``: at most one ``key=value`` (a sweep value), which names the run dir's variant
     as Hydra's ``override_dirname`` does (conf/config.yaml)."""
     first = preset_config(experiment, profile, runs_dir, overrides)
-    trials = []
+    trials, records = [], records_dir_for(runs_dir)
     for seed in range(first.budget.trials):
         # the seed is a plain field that no other value interpolates: replace() equals composing seed=k
         cfg = dataclasses.replace(first, seed=seed)
         variant = variant_name(cfg.variant, ",".join(overrides), cfg.env.backend)
         path = run_dir_path(runs_dir, experiment, variant, seed)
-        trials.append(Trial(seed, path, Run(path).is_done(config_hash(cfg)), cfg))
+        cfg_hash = config_hash(cfg)
+        trials.append(Trial(seed, path, Run(path).is_done(cfg_hash), cfg,
+                            is_recorded(records, path.relative_to(runs_dir), cfg_hash)))
     rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
-                      first.budget.train_env_steps if rl else 0, overrides=overrides)
+                      first.budget.train_env_steps if rl else 0, overrides=overrides, count_records=count_records)
 
 
 # --------------------------------------------------------------------------- cost estimates
@@ -145,15 +160,15 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
 
     env, budget, work, spec = cfg.env.name, cfg.budget, [], runner_spec(cfg.runner)
     engine = rate_suffix(cfg)
-    needs_data = spec.uses_dataset or "vae" in (cfg.repr.state.kind, cfg.repr.action.kind)
     data_steps = budget.data_episodes * budget.data_steps_per_episode
-    if needs_data and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
+    trained = [which for which in ("state", "action") if getattr(cfg.repr, which).kind == "vae"
+               and _first(costed, cfg.runs_dir, f"repr_{which}", _repr_identity(cfg, which))]
+    # a recorded V_s / V_a is restored, not trained: it needs no dataset
+    if (spec.uses_dataset or trained) and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
         work.append((f"collect/{env}{engine}", data_steps))
-    for which in ("state", "action"):
-        kind = f"repr_{which}"
-        if getattr(cfg.repr, which).kind == "vae" and _first(costed, cfg.runs_dir, kind, _repr_identity(cfg, which)):
-            samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
-            work.append((f"{kind}/{env}", samples))
+    for which in trained:
+        samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
+        work.append((f"repr_{which}/{env}", samples))
     if spec.trains_policy:
         work.append((f"train/{cfg.experiment}{engine}", budget.train_env_steps))
         work.append((f"eval/{cfg.experiment}{engine}", _eval_env_steps(cfg)))
@@ -183,7 +198,7 @@ def _first(costed: set[str], runs_dir: str, kind: str, key: dict[str, Any]) -> b
     """True the first time this plan meets an artifact that is not built yet (it is built once,
     then shared)."""
     ident = f"{kind}:{stable_hash(key)}"
-    if ident in costed or is_built(runs_dir, kind, key):
+    if ident in costed or is_built(runs_dir, kind, key) or recorded_artifact(runs_dir, kind, stable_hash(key)):
         return False
     costed.add(ident)
     return True

@@ -3,7 +3,8 @@ results collector. ``./reproduce.sh`` bootstraps ``.venv`` and calls ``python -m
 
 Trials whose run dir is already done with the same config are not launched again, so an
 interrupted reproduce.sh re-run finishes only the rest; an interrupted trial resumes from its
-checkpoint. Parallelism and clusters go through Hydra's own launchers (joblib, submitit).
+checkpoint. Trials a committed record holds done (``results/records``) count as done too
+(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Parallelism and clusters go through Hydra's own launchers (joblib, submitit).
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError, FilmstripCon
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile, plan_sweep
+from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json
 from plls_bench.sweeps import load_sweep, sweep_names
@@ -49,16 +51,19 @@ def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: l
 def format_plan(plans: list[PresetPlan], jobs: int) -> str:
     """The plan as a table, with estimated compute from measured throughput."""
     width = max([28, *(len(p.label) for p in plans)])
-    rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
+    rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'recorded':>8s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
     total, unknown = 0.0, set()
     for p in plans:
         est = "n/a" if p.seconds is None else f"{p.seconds / 3600:.2f}"
         trials = f"{len(p.pending)}/{len(p.trials)}"
-        rows.append(f"{p.label:{width}s} {p.runner:8s} {trials:>9s} {p.env_steps_per_trial:>15,d} {est:>10s}")
+        rows.append(f"{p.label:{width}s} {p.runner:8s} {trials:>9s} {p.recorded:>8d} {p.env_steps_per_trial:>15,d} "
+                    f"{est:>10s}")
         total += p.seconds or 0.0
         unknown.update(p.missing_rates)
-    pending = sum(len(p.pending) for p in plans)
-    rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done)")
+    pending, recorded = sum(len(p.pending) for p in plans), sum(p.recorded for p in plans)
+    rerun = "run again (--rerun-recorded)" if plans and not plans[0].count_records else "counted as done"
+    rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "
+                f"{recorded} recorded in committed records, {rerun}")
     rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
                 f"about {total / 3600 / max(jobs, 1):.1f} h wall with {jobs} parallel job(s)")
     if unknown:
@@ -114,13 +119,15 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
         trial = plan.trials[0]
         run_hash, cap = config_hash(trial.cfg), trial.cfg.budget.eval_max_steps
         run = Run(trial.run_dir)
+        if not run.is_done(run_hash) and trial.recorded:
+            run = Run(record_path(trial.run_dir))  # filmed from the record, the strip joins it
         if not run.is_done(run_hash):
             print(f"[reproduce] {plan.experiment}: no filmstrip, seed={trial.seed} is not done", flush=True)
             continue
         if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue
-        command = [sys.executable, "-m", "plls_bench.analysis.filmstrip", str(trial.run_dir),
+        command = [sys.executable, "-m", "plls_bench.analysis.filmstrip", str(run.path),
                    *(["--max-steps", str(cap)] if cap else [])]
         if subprocess.run(command).returncode != 0:
             failed.append(f"{plan.experiment} (filmstrip)")
@@ -136,11 +143,11 @@ def _legacy_hash(path: Path) -> str | None:
 def export_run_records(runs_dir: str) -> None:
     """Copy the small files of every finished non-smoke run into the committed records folder
     beside the runs dir, so the evidence survives a fresh clone (commit them with git)."""
-    from plls_bench.records import export_records, records_dir_for
+    from plls_bench.records import export_records
 
     done = export_records(runs_dir)
-    print(f"[reproduce] records: {len(done.written)} written, {done.unchanged} unchanged under "
-          f"{records_dir_for(runs_dir)} (commit them to keep this evidence)", flush=True)
+    print(f"[reproduce] records: {done.summary()} under {records_dir_for(runs_dir)} "
+          f"(commit them to keep this evidence)", flush=True)
     for line in done.skipped:
         print(f"[reproduce] records: skipped {line}", flush=True)
 
@@ -174,6 +181,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                              f"--profile smoke, git-ignored; else {RESULTS_OUT}, the committed results)")
     parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
     parser.add_argument("--dry-run", action="store_true", help="print the plan and its estimated cost, run nothing")
+    parser.add_argument("--rerun-recorded", action="store_true",
+                        help="run trials that a committed record holds done again (default: counted as done)")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
@@ -193,10 +202,11 @@ def main(argv: list[str] | None = None) -> int:
         check_writable_dir(args.runs, "--runs")  # before any launch: a job could not even log its failure
         if not args.no_report:
             check_writable_dir(args.out, "--out")
+        count_records = not args.rerun_recorded
         if args.sweep:
-            plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs)
+            plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs, count_records=count_records)
         else:
-            plans = plan_profile(args.profile, args.runs, args.only)
+            plans = plan_profile(args.profile, args.runs, args.only, count_records=count_records)
     except ConfigError as err:
         print(f"reproduce: {err}", file=sys.stderr)
         return 2

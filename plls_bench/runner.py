@@ -1,4 +1,5 @@
-"""Run one composed config in its run directory: skip if done, resume or start, record status.
+"""Run one composed config in its run directory: skip if done, resume (from its own checkpoint or
+a partial record another session left, :mod:`plls_bench.records.restore`) or start, record status.
 
 Runners are looked up by ``cfg.runner`` in the registry (:mod:`plls_bench.runner_specs`), whose
 loaders import a runner's module only when it runs, so that choosing one task never imports
@@ -11,6 +12,7 @@ from pathlib import Path
 
 from plls_bench.config import Config
 from plls_bench.devices import require_device
+from plls_bench.records.restore import seed_from_partial
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, Run, config_hash
 from plls_bench.seeding import derive_seeds, seed_everything
@@ -31,6 +33,9 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
     if previous is not None and previous != cfg_hash:
         moved = _supersede_keeping_hydra(run, cfg.runs_dir)
         log.warning("config changed (%s -> %s): previous run moved to %s", previous, cfg_hash, moved)
+    seeded = seed_from_partial(run.path, cfg.runs_dir, cfg_hash)  # another session's unfinished trial
+    if seeded is not None:
+        log.info("resuming seed=%d from partial record %s at iteration %d", cfg.seed, *seeded)
     fn = runner_spec(cfg.runner).load()  # imports this runner's module (and simulator) only
     _configure_torch(cfg)
     seed_everything(derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).train)

@@ -95,11 +95,12 @@ def _ppo_policy(run_dir: Path, device: str) -> TrainedPolicy:
 
 def _dbc_policy(run_dir: Path, device: str) -> TrainedPolicy:
     from plls_bench.train.dbc import to_env_action
-    from plls_bench.train.dbc_state import CHECKPOINT, load_trained_agent
+    from plls_bench.train.dbc_state import CHECKPOINT, POLICY, load_trained_agent
 
     cfg, agent, space, reprs = load_trained_agent(run_dir, device)
+    used = CHECKPOINT if (run_dir / CHECKPOINT).exists() else POLICY  # a record keeps the actor alone
     return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
-                         Path(CHECKPOINT).name, reprs)
+                         Path(used).name, reprs)
 
 
 # --------------------------------------------------------------------------- the registry

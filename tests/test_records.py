@@ -2,13 +2,14 @@
 from records alone (a fresh clone) and keeps them when a smoke run appears beside them."""
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from plls_bench.records import export_records, main as records_main, record_files, records_dir_for
+from plls_bench.records import export, export_records, main as records_main, record_files, records_dir_for
 from plls_bench.report.collect import render_all
 from plls_bench.report.load import Runs
 from tests.synthetic_runs import build_all, fill, finish, make_run
@@ -27,9 +28,12 @@ def quick_runs(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
-def test_records_hold_the_collector_files_not_checkpoints(quick_runs: Path, tmp_path: Path) -> None:
+def test_records_hold_the_collector_files_and_the_final_checkpoint_only(quick_runs: Path, tmp_path: Path) -> None:
     run_dir = next((quick_runs / "runs" / "mountaincar_ppo" / "default").iterdir())
-    (run_dir / "checkpoints" / "ppo-0000001.zip").write_bytes(b"weights")
+    (run_dir / "checkpoints" / "ppo-0000001.zip").write_bytes(b"older weights")
+    (run_dir / "checkpoints" / "ppo-0000002.zip").write_bytes(b"final weights")
+    (run_dir / "checkpoints" / "latest.json").write_text(json.dumps(
+        {"model": "ppo-0000002.zip", "normalization": None, "progress": {"iteration": 2}, "rng": {}}))
     (run_dir / "sb3").mkdir(exist_ok=True)
     (run_dir / "sb3" / "progress.csv").write_text("x\n")
     names = {str(p) for p in record_files(run_dir)}
@@ -39,9 +43,25 @@ def test_records_hold_the_collector_files_not_checkpoints(quick_runs: Path, tmp_
     out = tmp_path / "records"
     first = export_records(quick_runs / "runs", out)
     assert first.written and not first.skipped
-    assert not list(out.rglob("checkpoints")) and not list(out.rglob("*.zip"))
+    record = out / run_dir.relative_to(quick_runs / "runs")
+    assert sorted(p.name for p in (record / "checkpoints").iterdir()) == ["latest.json", "ppo-0000002.zip"]
+    assert not list(out.rglob("sb3")) and not list(out.rglob("ppo-0000001.zip")), "only the final checkpoint"
     again = export_records(quick_runs / "runs", out)
     assert again.written == [] and again.unchanged == len(first.written), "an unchanged record is not rewritten"
+
+
+def test_a_file_over_the_cap_is_left_out_and_reported(quick_runs: Path, tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    run_dir = next((quick_runs / "runs" / "mountaincar_ppo" / "default").iterdir())
+    (run_dir / "checkpoints" / "latest.json").write_text(json.dumps(
+        {"model": "ppo-0000003.zip", "normalization": None, "progress": {"iteration": 3}, "rng": {}}))
+    (run_dir / "checkpoints" / "ppo-0000003.zip").write_bytes(b"w" * 2048)
+    monkeypatch.setattr(export, "MAX_FILE_BYTES", 1024)
+    done = export_records(quick_runs / "runs", tmp_path / "records")
+    key = str(run_dir.relative_to(quick_runs / "runs"))
+    assert f"{key}/checkpoints/ppo-0000003.zip: over 0 MiB, not recorded" in done.skipped
+    assert not (tmp_path / "records" / key / "checkpoints" / "ppo-0000003.zip").exists()
+    assert (tmp_path / "records" / key / "checkpoints" / "latest.json").exists()
 
 
 def test_smoke_and_unfinished_runs_are_not_recorded(tmp_path: Path) -> None:

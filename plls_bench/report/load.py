@@ -5,7 +5,8 @@ seed, a torn jsonl line, a failed or unfinished run, a corrupt file) is recorded
 in that view, so the id reports exactly the gaps that touch it. Only the files listed in the
 README's "What each runner writes" table are read.
 
-Trials come from the runs dir and from the committed records (``plls_bench/records.py``). A local
+Trials come from the runs dir and from the committed records (``plls_bench/records/``; partial
+records, under ``records/partial/``, are never read: only ``<records>/<experiment>/<variant>``). A local
 run replaces the record of the same seed when their configs agree; otherwise both compete as
 groups of one config, and the group of the highest budget wins, then the largest, then the local
 one: a smoke run on a fresh clone never hides real-budget records.

@@ -31,6 +31,8 @@ from filelock import FileLock
 from plls_bench.artifacts import Artifact, discard, get_or_build, is_built
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
+from plls_bench.records.layout import recorded_artifact
+from plls_bench.records.restore import copy_artifact_files
 from plls_bench.repr.keys import (CONFIG_KEYS, FILES, KINDS, NAMES, build_command, model_config, repr_key,
                                   repr_path, sha256)
 from plls_bench.repr.models import ActionVAE, StateVAE
@@ -101,6 +103,7 @@ def ensure_artifact(cfg: Config, which: str) -> Artifact:
     """The verified artifact for ``cfg``'s ``which`` model, trained first if needed. A corrupt
     artifact (a file changed or torn since it was built) is discarded, logged and rebuilt."""
     _require_vae(cfg, which)
+    restore_recorded(cfg, which)
     key, kind = repr_key(cfg, which), KINDS[which]
     artifact = get_or_build(cfg.runs_dir, kind, key, lambda out: build(cfg, which, out))
     problem = verify(artifact.path)
@@ -121,6 +124,7 @@ def find_artifact(cfg: Config, which: str) -> Artifact:
     """The verified artifact for ``cfg``'s ``which`` model, never built here: a missing or
     corrupt one raises :class:`MissingArtifact` naming its key and the command that builds it."""
     _require_vae(cfg, which)
+    restore_recorded(cfg, which)
     path = repr_path(cfg, which)
     if not is_built(cfg.runs_dir, KINDS[which], repr_key(cfg, which)):
         raise MissingArtifact(f"{NAMES[which]} artifact {KINDS[which]}/{path.name} is missing (no {path}): "
@@ -130,6 +134,21 @@ def find_artifact(cfg: Config, which: str) -> Artifact:
         raise MissingArtifact(f"{NAMES[which]} artifact {KINDS[which]}/{path.name} at {path} is corrupt "
                               f"({problem}): run `{build_command(cfg, which)}` to rebuild it")
     return Artifact(path, built=False)
+
+
+def restore_recorded(cfg: Config, which: str) -> None:
+    """Copy the committed record of ``cfg``'s ``which`` artifact (``records/artifacts/``, beside
+    the runs dir) into the runs dir when it is not built there: no training, no dataset."""
+    kind, key = KINDS[which], repr_key(cfg, which)
+    source = recorded_artifact(cfg.runs_dir, kind, repr_path(cfg, which).name)
+    if source is None or is_built(cfg.runs_dir, kind, key):
+        return
+    problem = verify(source)
+    if problem is not None:
+        log.warning("recorded %s artifact %s is not usable (%s); building it instead", kind, source, problem)
+        return
+    if get_or_build(cfg.runs_dir, kind, key, lambda out: copy_artifact_files(source, out)).built:
+        log.info("%s artifact %s/%s restored from record %s", NAMES[which], kind, source.name, source)
 
 
 def load_weights(path: Path, model: torch.nn.Module, what: str) -> None:

@@ -19,6 +19,7 @@ from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
+from plls_bench.records.layout import runs_dir_of
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import read_json
 from plls_bench.seeding import quiet_rng
@@ -108,6 +109,7 @@ def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
     if found is None:
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
     cfg = config_from_dict(record["config"])
+    cfg = replace(cfg, runs_dir=runs_dir_of(run_dir, cfg.runs_dir))  # records load on any checkout
     model = load_model(found[0], resolve_device(device))
     reprs = load_representations(replace(cfg, device=device))  # beside the policy, not on the recorded device
     return Trained(cfg, model, frozen_obs_map(normalization(Path(run_dir))), reprs)

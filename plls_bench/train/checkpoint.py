@@ -91,3 +91,14 @@ def normalization(run_path: Path) -> bytes | None:
     if not path.is_file():
         raise FileNotFoundError(f"{path} named by {LATEST} is missing; the checkpoint is corrupt")
     return path.read_bytes()
+
+
+def committed_files(run_path: Path) -> tuple[list[str], int] | None:
+    """The run-relative files of the last committed checkpoint, ``latest.json`` (its commit
+    point) last, and its iteration; None without one. What a record carries to rebuild the
+    policy (``load_trained``) or resume the run."""
+    record = read_json(Path(run_path) / "checkpoints" / LATEST)
+    if record is None:
+        return None
+    names = [record["model"], *([record["normalization"]] if record.get("normalization") else []), LATEST]
+    return [f"checkpoints/{name}" for name in names], int(record["progress"]["iteration"])

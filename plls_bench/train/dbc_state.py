@@ -28,12 +28,16 @@ from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import wrap_latent
+from plls_bench.records.layout import runs_dir_of
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import Run, read_json
 from plls_bench.seeding import quiet_rng
 from plls_bench.train.loop import Progress
 
 CHECKPOINT = "checkpoints/dbc.pt"
+# The actor's weights alone (its conv trunk is the critic's, shared): what a record keeps of a
+# finished DBC run to film it; dbc.pt with every module and optimiser is several times larger.
+POLICY = "checkpoints/dbc_policy.pt"
 PROGRESS = "checkpoints/progress.json"
 REPLAY_DIR = "checkpoints/replay"
 _CHUNK = re.compile(r"chunk_(\d+)_(\d+)\.npz")
@@ -113,11 +117,12 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     record = read_json(run_dir / "config.json")
     if record is None:
         raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
-    path = run_dir / CHECKPOINT
+    path = run_dir / CHECKPOINT if (run_dir / CHECKPOINT).exists() else run_dir / POLICY
     if not path.exists():
         raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
     target = resolve_device(device)  # refuses an absent GPU before any env is built
     cfg = replace(config_from_dict(record["config"]), device=device)  # the recorded one may be absent here
+    cfg = replace(cfg, runs_dir=runs_dir_of(run_dir, cfg.runs_dir))  # records load on any checkout
     assert cfg.algo.dbc is not None
     reprs = load_representations(cfg)
     venv = wrap_latent(make_vec_env(cfg.env, 1, 0), reprs)  # the spaces the agent saw in training
@@ -128,5 +133,20 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     with quiet_rng(target):  # the agent's throw-away initial weights never draw from the global stream
         agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target, cfg.precision)
     state = torch.load(path, map_location=agent.device, weights_only=True)
-    agent.load_state_dict(state["agent"])
+    if path.name == Path(POLICY).name:  # a record's actor alone: acting needs nothing else
+        agent.actor.load_state_dict(state)
+    else:
+        agent.load_state_dict(state["agent"])
     return cfg, agent, space, reprs
+
+
+def policy_bytes(run_dir: Path) -> bytes | None:
+    """The :data:`POLICY` file of the run's last checkpoint (the actor's state dict), or None
+    without a checkpoint; ``load_trained_agent`` reads it when ``dbc.pt`` is absent."""
+    path = Path(run_dir) / CHECKPOINT
+    if not path.exists():
+        return None
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    buffer = io.BytesIO()
+    torch.save(state["agent"]["modules"]["actor"], buffer)
+    return buffer.getvalue()

@@ -1,0 +1,210 @@
+"""Export runs into the committed records: finished runs, unfinished PPO runs (partial records)
+and the V_s / V_a artifacts they use. ``python -m plls_bench.records`` runs :func:`main`."""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, PARTIAL_DIR, PARTIAL_MARKER,
+                                       REPR_KINDS, records_dir_for)
+from plls_bench.runs import STATUS_DONE, iter_run_dirs, read_json
+
+RECORD_GLOBS = ("config.json", "status.json", "provenance.json", "metrics/*.jsonl", "metrics/*.json",
+                "samples/*.npz", "studies/*.npz", "filmstrip/filmstrip.json", "filmstrip/frames.npz")
+DBC_PARTIAL = "DBC replay too large to carry"
+Content = Path | bytes  # a file of the run, or bytes made from it
+
+
+@dataclass
+class Exported:
+    written: list[str] = field(default_factory=list)    # run keys whose record was (re)written
+    unchanged: int = 0                                    # records already identical
+    skipped: list[str] = field(default_factory=list)    # runs or files left out, with the reason
+    partial: list[str] = field(default_factory=list)    # unfinished runs written as partial records
+    artifacts: list[str] = field(default_factory=list)  # <kind>/<hash> artifacts newly recorded
+
+    def summary(self) -> str:
+        return (f"{len(self.written)} written, {self.unchanged} unchanged, {len(self.partial)} partial, "
+                f"{len(self.artifacts)} artifact(s) added, {len(self.skipped)} skipped")
+
+
+def record_files(run_dir: Path) -> list[Path]:
+    """The collector's files of ``run_dir`` that belong in its record (relative paths, sorted)."""
+    found = {path.relative_to(run_dir) for pattern in RECORD_GLOBS for path in run_dir.glob(pattern)
+             if path.is_file()}
+    return sorted(found)
+
+
+def policy_files(run_dir: Path, runner: str | None) -> dict[str, Content]:
+    """The files that rebuild the run's last checkpointed policy: PPO's files named by
+    ``checkpoints/latest.json``; DBC's actor weights alone (``dbc_state.POLICY``, no replay)."""
+    if runner == "ppo":
+        from plls_bench.train.checkpoint import committed_files
+
+        found = committed_files(run_dir)
+        return {} if found is None else {rel: run_dir / rel for rel in found[0]}
+    if runner == "dbc":
+        from plls_bench.train.dbc_state import POLICY, policy_bytes
+
+        data = policy_bytes(run_dir)
+        return {} if data is None else {POLICY: data}
+    return {}
+
+
+def _size(content: Content) -> int:
+    return len(content) if isinstance(content, bytes) else content.stat().st_size
+
+
+def _bytes(content: Content) -> bytes:
+    return content if isinstance(content, bytes) else content.read_bytes()
+
+
+def write_record(target: Path, contents: dict[str, Content]) -> tuple[bool, list[str]]:
+    """Write ``contents`` as the record at ``target`` (replacing an older one whole, via a temp
+    dir and rename). Returns (changed, files left out for size)."""
+    too_big = sorted(rel for rel, content in contents.items() if _size(content) > MAX_FILE_BYTES)
+    files = {rel: content for rel, content in contents.items() if rel not in too_big}
+    existing = {str(p.relative_to(target)) for p in target.rglob("*") if p.is_file()} if target.is_dir() else None
+    if existing == set(files) and all((target / rel).read_bytes() == _bytes(c) for rel, c in files.items()):
+        return False, too_big
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{target.name}."))
+    try:
+        for rel, content in files.items():
+            (staging / rel).parent.mkdir(parents=True, exist_ok=True)
+            (staging / rel).write_bytes(_bytes(content))
+        if target.exists():
+            old = target.with_name(f".{target.name}.old")
+            target.rename(old)
+            staging.rename(target)
+            shutil.rmtree(old)
+        else:
+            staging.rename(target)
+    finally:
+        if staging.exists():
+            shutil.rmtree(staging, ignore_errors=True)
+    return True, too_big
+
+
+def export_run(run_dir: Path, target: Path) -> tuple[bool, list[str]]:
+    """A finished run's record: the collector's files and its final policy checkpoint."""
+    config = (read_json(run_dir / "config.json") or {}).get("config") or {}
+    contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
+    return write_record(target, {**contents, **policy_files(run_dir, config.get("runner"))})
+
+
+def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple[bool, list[str]] | str:
+    """An unfinished PPO run's partial record: its files so far, its last checkpoint and
+    ``partial.json`` (what to copy back, commit file last); a reason string when it cannot be carried."""
+    if config.get("runner") == "dbc":
+        return DBC_PARTIAL
+    from plls_bench.train.checkpoint import committed_files
+
+    found = committed_files(run_dir) if config.get("runner") == "ppo" else None
+    if found is None:
+        return "no checkpoint to carry"
+    files, iteration = found
+    contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
+    contents.update({rel: run_dir / rel for rel in files})
+    oversize = [rel for rel, path in contents.items() if _size(path) > MAX_FILE_BYTES]
+    if oversize:  # a run resumed without one of them would lose its rows or its checkpoint
+        return f"{', '.join(oversize)} over {MAX_FILE_BYTES // 2**20} MiB, not carried"
+    state = (read_json(run_dir / "status.json") or {}).get("state")
+    marker = {"config_hash": (read_json(run_dir / "config.json") or {}).get("config_hash"), "state": state,
+              "iteration": iteration, "files": [f for f in contents if f != "status.json"], "commit": files[-1]}
+    contents[PARTIAL_MARKER] = (json.dumps(marker, indent=2, sort_keys=True) + "\n").encode()
+    return write_record(target, contents)
+
+
+def artifact_names(config: dict[str, Any]) -> list[tuple[str, str]]:
+    """(kind, hash) of the V_s / V_a artifacts a run's config uses."""
+    from plls_bench.composition import config_from_dict
+    from plls_bench.repr.keys import KINDS, model_config, repr_path
+
+    cfg = config_from_dict(config)
+    return [(KINDS[w], repr_path(cfg, w).name) for w in ("state", "action") if model_config(cfg, w).kind == "vae"]
+
+
+def export_artifact(runs_root: Path, out: Path, kind: str, name: str) -> tuple[bool, list[str]] | None:
+    """Copy a complete runs-dir artifact (all its files, each under the cap) into the records;
+    None when it is not built here. Nothing is written when a file is over the cap."""
+    source = runs_root / ARTIFACTS_DIR / kind / name
+    if kind not in REPR_KINDS or read_json(source / "key.json") is None:
+        return None
+    contents: dict[str, Content] = {str(p.relative_to(source)): p for p in sorted(source.rglob("*")) if p.is_file()}
+    too_big = [rel for rel, p in contents.items() if _size(p) > MAX_FILE_BYTES]
+    if too_big:
+        return False, too_big
+    return write_record(out / ARTIFACTS_DIR / kind / name, contents)
+
+
+def export_records(runs_dir: str | Path, records_dir: str | Path | None = None) -> Exported:
+    """Export every run of a non-smoke budget under ``runs_dir`` to ``records_dir``: finished ones
+    as records (a partial record of the same run is then removed), unfinished PPO runs as partial
+    records, and the V_s / V_a artifacts of both, once each."""
+    runs_root = Path(runs_dir)
+    out = Path(records_dir) if records_dir is not None else records_dir_for(runs_root)
+    done, used = Exported(), set()
+    for run_dir in iter_run_dirs(runs_root):
+        key = str(run_dir.relative_to(runs_root))
+        config = (read_json(run_dir / "config.json") or {}).get("config") or {}
+        if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
+            continue
+        state = (read_json(run_dir / "status.json") or {}).get("state")
+        if state == STATUS_DONE:
+            _count(done, key, export_run(run_dir, out / key), done.written)
+            shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)  # the finished record replaces it
+        else:
+            carried = export_partial(run_dir, out / PARTIAL_DIR / key, config)
+            if isinstance(carried, str):
+                done.skipped.append(f"{key}: status {state} ({carried})")
+                continue
+            _count(done, key, carried, done.partial)
+        try:
+            used.update(artifact_names(config))
+        except Exception as err:  # a config this version no longer reads: say so, export the rest
+            done.skipped.append(f"{key}: V_s / V_a not identified ({type(err).__name__}: {err})")
+    for kind, name in sorted(used):
+        result = export_artifact(runs_root, out, kind, name)
+        if result is not None:
+            _count(done, f"{kind}/{name}", result, done.artifacts, unchanged=False)
+    return done
+
+
+def _count(done: Exported, key: str, result: tuple[bool, list[str]], written: list[str],
+           unchanged: bool = True) -> None:
+    changed, too_big = result
+    done.skipped += [f"{key}/{name}: over {MAX_FILE_BYTES // 2**20} MiB, not recorded" for name in too_big]
+    if changed:
+        written.append(key)
+    elif unchanged:
+        done.unchanged += 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m plls_bench.records",
+                                     description="Export finished and unfinished non-smoke runs into the "
+                                                 "committed records (README: Results collector).")
+    parser.add_argument("--runs", default="results/runs", help="root of the run directories (read only)")
+    parser.add_argument("--records", default=None, help="records folder (default: 'records' beside --runs)")
+    args = parser.parse_args(argv)
+    if not Path(args.runs).is_dir():
+        print(f"plls_bench.records: --runs {args.runs} is not a directory", file=sys.stderr)
+        return 2
+    done = export_records(args.runs, args.records)
+    for key in done.written:
+        print(f"[records] wrote {key}")
+    for key in done.partial:
+        print(f"[records] wrote partial record {key} (resumed from there by the next start)")
+    for name in done.artifacts:
+        print(f"[records] wrote artifact {name}")
+    for line in done.skipped:
+        print(f"[records] skipped {line}")
+    print(f"[records] {done.summary()}")
+    return 0

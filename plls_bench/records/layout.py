@@ -1,0 +1,79 @@
+"""Where committed records live and what a record is, read without torch or simulators.
+
+``results/records/`` (beside ``results/runs/``, :func:`records_dir_for`) holds::
+
+    <experiment>/<variant>/seed=<k>/          the record of a finished run (status done)
+    partial/<experiment>/<variant>/seed=<k>/  an unfinished run carried to the next session,
+                                              with partial.json written last
+    artifacts/repr_{state,action}/<hash>/     the V_s / V_a models the records used, laid out as
+                                              the runs dir's artifacts (key.json, meta.json)
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from plls_bench.runs import Run, read_json
+
+# One cap for every committed file: a CarRacing V_s model.pt is 6.9 MiB and a CarRacing PPO
+# checkpoint (CNN weights with Adam's moments) 9.8 MiB; a DBC actor ~13 MiB (README "Results collector").
+MAX_FILE_BYTES = 16 * 1024 * 1024
+EXCLUDED_BUDGETS = ("smoke",)  # smoke runs check the pipeline, not the paper
+PARTIAL_DIR = "partial"
+PARTIAL_MARKER = "partial.json"
+ARTIFACTS_DIR = "artifacts"
+REPR_KINDS = ("repr_state", "repr_action")  # the artifacts records carry (datasets are too big)
+
+
+def records_dir_for(runs_dir: str | Path) -> Path:
+    """The records folder beside a runs dir: ``results/runs`` -> ``results/records``."""
+    return Path(runs_dir).parent / "records"
+
+
+def run_key(run_dir: str | Path, runs_dir: str | Path) -> Path | None:
+    """``<experiment>/<variant>/seed=<k>`` of a run dir under ``runs_dir``; None elsewhere."""
+    try:
+        key = Path(run_dir).resolve().relative_to(Path(runs_dir).resolve())
+    except ValueError:
+        return None
+    return key if len(key.parts) == 3 and key.parts[-1].startswith("seed=") else None
+
+
+def layout_root(run_dir: str | Path) -> Path | None:
+    """The root a run dir or record lives under by the ``<root>/<experiment>/<variant>/seed=<k>``
+    layout (a runs dir, or a records dir whose ``artifacts/`` mirror the runs dir's); None otherwise."""
+    path = Path(run_dir)
+    return path.parents[2] if path.name.startswith("seed=") and len(path.parts) > 3 else None
+
+
+def record_path(run_dir: str | Path) -> Path:
+    """The record of a ``<runs_dir>/<experiment>/<variant>/seed=<k>`` run dir."""
+    root = layout_root(run_dir)
+    if root is None:
+        raise ValueError(f"{run_dir} is not a <runs_dir>/<experiment>/<variant>/seed=<k> run dir")
+    return records_dir_for(root) / Path(run_dir).relative_to(root)
+
+
+def is_recorded(records_dir: str | Path, key: str | Path, cfg_hash: str) -> bool:
+    """A committed record of ``key`` says done for this exact config."""
+    return Run(Path(records_dir) / key).is_done(cfg_hash)
+
+
+def partial_record(records_dir: str | Path, key: str | Path, cfg_hash: str) -> Path | None:
+    """The complete partial record of ``key`` made with this config, or None."""
+    path = Path(records_dir) / PARTIAL_DIR / key
+    marker = read_json(path / PARTIAL_MARKER)
+    return path if isinstance(marker, dict) and marker.get("config_hash") == cfg_hash else None
+
+
+def recorded_artifact(runs_dir: str | Path, kind: str, name: str) -> Path | None:
+    """The complete copy of artifact ``<kind>/<name>`` in the records beside ``runs_dir``, or None."""
+    path = records_dir_for(runs_dir) / ARTIFACTS_DIR / kind / name
+    return path if read_json(path / "key.json") is not None else None
+
+
+def runs_dir_of(run_dir: str | Path, recorded: str) -> str:
+    """Where a trained run's V_s / V_a are looked up: the root it lives under (a record's are in
+    its records dir's ``artifacts/``; a runs dir restores them from the records beside it), so a
+    record made on another machine or checkout loads anywhere; ``recorded`` off the layout."""
+    root = layout_root(run_dir)
+    return recorded if root is None else str(root)

@@ -1,0 +1,42 @@
+"""Bring committed records back into a runs dir: a partial record seeds its run dir so the trial
+resumes where the last session stopped; a recorded artifact's files fill a runs-dir artifact.
+
+Both copy file by file with atomic writes; what makes the copy count is written last (a partial
+record's checkpoint commit file, an artifact's ``key.json`` via ``artifacts.get_or_build``), so a
+copy cut off half-way is never taken for complete.
+"""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from plls_bench.artifacts import KEY_FILE
+from plls_bench.records.layout import PARTIAL_MARKER, partial_record, records_dir_for, run_key
+from plls_bench.runs import atomic_write_bytes, read_json
+
+
+def copy_artifact_files(source: Path, out: Path) -> None:
+    """An ``artifacts.get_or_build`` build step: the recorded artifact's files, less its key file
+    (``get_or_build`` writes that last)."""
+    for path in sorted(source.rglob("*")):
+        if path.is_file() and path.name != KEY_FILE:
+            (out / path.relative_to(source)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, out / path.relative_to(source))
+
+
+def seed_from_partial(run_dir: str | Path, runs_dir: str | Path, cfg_hash: str) -> tuple[Path, int] | None:
+    """Copy the partial record of this trial (same config hash) into ``run_dir`` when the run dir
+    has no committed checkpoint of its own; returns (record, iteration) or None. The record's
+    checkpoint commit file is copied last; metrics rows past the checkpoint are dropped by the
+    trainer's resume (``train.loop``), as after a kill."""
+    key = run_key(run_dir, runs_dir)
+    source = None if key is None else partial_record(records_dir_for(runs_dir), key, cfg_hash)
+    if source is None:
+        return None
+    marker = read_json(source / PARTIAL_MARKER)
+    if (Path(run_dir) / marker["commit"]).exists():
+        return None  # the local checkpoint is this machine's own, at least as recent
+    files = [f for f in marker["files"] if f != marker["commit"]] + [marker["commit"]]
+    for rel in files:
+        atomic_write_bytes(Path(run_dir) / rel, (source / rel).read_bytes())
+    return source, int(marker["iteration"])

@@ -1,0 +1,197 @@
+"""Records as carried evidence: reproduce counts recorded trials as done, a recorded policy is
+filmed and evaluated with an empty runs dir (its V_s / V_a restored from the records, no dataset),
+and an interrupted PPO trial continues in a fresh runs dir from its partial record."""
+from __future__ import annotations
+
+import logging
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plls_bench.analysis.filmstrip import make_filmstrip
+from plls_bench.plan import plan_profile
+from plls_bench.records import export, export_records
+from plls_bench.records.layout import PARTIAL_DIR
+from plls_bench.report.load import Runs
+from plls_bench.runner import execute
+from plls_bench.runs import Run, config_hash, read_json, run_dir_path
+from plls_bench.train import ppo
+from tests.conftest import compose_preset
+from tests.synthetic_runs import make_run
+from tests.test_reproduce import reproduce
+
+KEY = Path("default") / "seed=0"
+VOLATILE = ("wall_s", "perf/")  # timing fields differ between any two runs
+
+
+@pytest.fixture
+def all_budgets(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Export smoke runs too: the real pipeline at its smallest budget stands in for a real one."""
+    monkeypatch.setattr(export, "EXCLUDED_BUDGETS", ())
+
+
+def test_reproduce_counts_recorded_trials_as_done_unless_asked_to_rerun(tmp_path: Path) -> None:
+    runs = tmp_path / "results" / "runs"
+    cfg = compose_preset("mountaincar_data", runs)
+    record = Run(tmp_path / "results" / "records" / "mountaincar_data" / KEY)
+    record.write_status("done", config_hash=config_hash(cfg))
+    [plan] = plan_profile("smoke", str(runs), only=["mountaincar_data"], rates={})
+    assert plan.recorded == 1 and plan.pending == []
+    [again] = plan_profile("smoke", str(runs), only=["mountaincar_data"], rates={}, count_records=False)
+    assert again.recorded == 1 and len(again.pending) == 1
+    record.write_status("done", config_hash="another config")
+    [changed] = plan_profile("smoke", str(runs), only=["mountaincar_data"], rates={})
+    assert changed.recorded == 0 and len(changed.pending) == 1, "a record of another config is not done"
+
+    record.write_status("done", config_hash=config_hash(cfg))
+    for flag, to_run, verb in (([], "0/1", "counted as done"), (["--rerun-recorded"], "1/1", "run again")):
+        shown = reproduce("--profile", "smoke", "--only", "mountaincar_data", "--runs", str(runs), "--dry-run", *flag)
+        assert shown.returncode == 0, shown.stderr
+        row = next(line.split() for line in shown.stdout.splitlines() if line.startswith("mountaincar_data"))
+        assert row[2:4] == [to_run, "1"], shown.stdout  # to run, recorded
+        assert f"1 recorded in committed records, {verb}" in shown.stdout
+    assert not runs.exists()
+
+
+def test_an_unfinished_dbc_run_is_not_carried(tmp_path: Path, all_budgets: None) -> None:
+    runs = tmp_path / "results" / "runs"
+    cfg = compose_preset("cheetah_dbc", runs)
+    run = Run(run_dir_path(runs, "cheetah_dbc", "default", 0))
+    run.prepare(cfg, config_hash(cfg))
+    run.write_status("running", config_hash=config_hash(cfg))
+    done = export_records(runs)
+    assert done.skipped == ["cheetah_dbc/default/seed=0: status running (DBC replay too large to carry)"]
+    assert not (tmp_path / "results" / "records").exists()
+
+
+def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An unfinished PPO run is carried with its checkpoint, or not at all (a file over the cap)."""
+    runs = tmp_path / "results" / "runs"
+    run, cfg = make_run(runs, "mountaincar_ppo", 0)
+    run.log("eval", {"iteration": 0, "return_mean": 1.0})
+    run.write_bytes("checkpoints/ppo-0000002.zip", b"w" * 2**20)
+    run.write_bytes("checkpoints/vecnormalize-0000002.json", b"{}")
+    run.write_json("checkpoints/latest.json", {"model": "ppo-0000002.zip", "normalization": "vecnormalize-0000002.json",
+                                               "progress": {"iteration": 2}, "rng": {}})
+    monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**19)
+    done = export_records(runs)
+    assert done.partial == [] and done.skipped == [
+        "mountaincar_ppo/default/seed=0: status running (checkpoints/ppo-0000002.zip over 0 MiB, not carried)"]
+    monkeypatch.undo()
+    assert export_records(runs).partial == ["mountaincar_ppo/default/seed=0"]
+    marker = read_json(tmp_path / "results" / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY / "partial.json")
+    assert marker["iteration"] == 2 and marker["commit"] == "checkpoints/latest.json"
+    assert {"metrics/eval.jsonl", "checkpoints/ppo-0000002.zip", "checkpoints/vecnormalize-0000002.json",
+            "checkpoints/latest.json"} <= set(marker["files"]), "VecNormalize statistics travel with the checkpoint"
+
+
+@pytest.mark.slow
+def test_a_recorded_policy_is_filmed_and_evaluated_with_an_empty_runs_dir(
+        tmp_path: Path, all_budgets: None, one_torch_thread: None, caplog: pytest.LogCaptureFixture) -> None:
+    from plls_bench.repr.store import load_representations
+    from plls_bench.train.agent import build_vec_env, load_trained
+
+    runs = tmp_path / "results" / "runs"
+    cfg = compose_preset("mountaincar_plls_ppo", runs)  # builds the dataset and V_a, then trains
+    run_dir = run_dir_path(runs, "mountaincar_plls_ppo", "default", 0)
+    assert execute(cfg, run_dir) == "done"
+    original = make_filmstrip(run_dir, tmp_path / "strip_run", device="cpu")
+    venv = build_vec_env(cfg, 2, seed=3, reprs=load_trained(run_dir, "cpu").reprs)
+    obs = venv.reset()
+    venv.close()
+    actions = load_trained(run_dir, "cpu").act(obs)
+
+    done = export_records(runs)
+    assert done.written == ["mountaincar_plls_ppo/default/seed=0"] and len(done.artifacts) == 1
+    records = tmp_path / "results" / "records"
+    record = records / "mountaincar_plls_ppo" / KEY
+    shutil.rmtree(runs)  # a fresh clone: only the committed records
+    assert not list((records / "artifacts").glob("data*")), "datasets are never recorded"
+
+    meta = make_filmstrip(record, tmp_path / "strip_record", device="cpu")
+    assert meta["episode_return"] == original["episode_return"] and meta["checkpoint"] == original["checkpoint"]
+    assert (tmp_path / "strip_record" / "frames.npz").read_bytes() == (tmp_path / "strip_run" / "frames.npz").read_bytes()
+    np.testing.assert_array_equal(load_trained(record, "cpu").act(obs), actions)
+
+    with caplog.at_level(logging.INFO, logger="plls_bench.repr.store"):
+        reprs = load_representations(cfg)  # the runs dir's own lookup: restored, not trained
+    [kind_hash] = done.artifacts
+    assert f"V_a artifact {kind_hash} restored from record {records / 'artifacts' / kind_hash}" in caplog.text
+    assert reprs.action_vae is not None and (runs / "artifacts" / kind_hash / "key.json").is_file()
+    assert not (runs / "artifacts" / "data").exists(), "restoring V_a needs no dataset"
+
+
+def _interrupted(cfg, run_dir: Path, after: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Run ``cfg`` and stop it as Ctrl-C would, once ``after`` iterations are checkpointed."""
+    real = ppo.PPOTrainer.train_iteration
+
+    def stop(self, at):
+        if at.iteration == after:
+            raise KeyboardInterrupt
+        return real(self, at)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(ppo.PPOTrainer, "train_iteration", stop)
+        with pytest.raises(KeyboardInterrupt):
+            execute(cfg, run_dir)
+
+
+def _rows(run_dir: Path, stream: str) -> list[dict]:
+    return [{k: v for k, v in row.items() if not k.startswith(VOLATILE)}
+            for row in Run(run_dir).read_metrics(stream)]
+
+
+@pytest.mark.slow
+def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_runs_dir(
+        tmp_path: Path, all_budgets: None, one_torch_thread: None, monkeypatch: pytest.MonkeyPatch,
+        caplog: pytest.LogCaptureFixture) -> None:
+    overrides = ("budget.train_env_steps=5120", "budget.eval_every_env_steps=1024")  # 10 iterations
+    dirs = {name: run_dir_path(tmp_path / name / "results" / "runs", "mountaincar_ppo", "default", 0)
+            for name in ("whole", "local", "carried")}
+    cfgs = {name: compose_preset("mountaincar_ppo", d.parents[2], *overrides) for name, d in dirs.items()}
+    assert execute(cfgs["whole"], dirs["whole"]) == "done"
+    for name in ("local", "carried"):
+        _interrupted(cfgs[name], dirs[name], 4, monkeypatch)
+    assert execute(cfgs["local"], dirs["local"]) == "done"  # resumed from its own checkpoint
+
+    runs = dirs["carried"].parents[2]
+    done = export_records(runs)
+    partial = runs.parent / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY
+    assert done.partial == ["mountaincar_ppo/default/seed=0"] and not done.written
+    assert read_json(partial / "partial.json")["iteration"] == 4
+    shutil.rmtree(runs)
+    assert Runs(runs, runs.parent / "records").experiment("mountaincar_ppo").trials == [], "partial records are not read"
+    with caplog.at_level(logging.INFO, logger="plls_bench.runner"):
+        assert execute(cfgs["carried"], dirs["carried"]) == "done"
+    assert f"resuming seed=0 from partial record {partial} at iteration 4" in caplog.text
+
+    for stream in ("train", "eval"):
+        carried, local, whole = (_rows(dirs[n], stream) for n in ("carried", "local", "whole"))
+        assert [r["iteration"] for r in carried] == [r["iteration"] for r in whole], "no row lost or duplicated"
+        assert carried == local, f"{stream}: resuming from the record is resuming from the checkpoint"
+        assert [r for r in carried if r["iteration"] <= 4] == [r for r in whole if r["iteration"] <= 4]
+    assert len(read_json(dirs["carried"] / "provenance.json")["starts"]) == 2, "the record's start is kept"
+
+    again = export_records(runs)
+    assert again.written == ["mountaincar_ppo/default/seed=0"] and not partial.exists(), "done replaces partial"
+
+
+@pytest.mark.slow
+def test_a_recorded_dbc_policy_keeps_its_actor_alone_and_films_the_same(
+        tmp_path: Path, all_budgets: None, one_torch_thread: None) -> None:
+    from plls_bench.train.dbc_state import POLICY
+
+    runs = tmp_path / "results" / "runs"
+    run_dir = run_dir_path(runs, "cheetah_plls_dbc", "default", 0)
+    assert execute(compose_preset("cheetah_plls_dbc", runs), run_dir) == "done"
+    original = make_filmstrip(run_dir, tmp_path / "strip_run", device="cpu", max_steps=20)
+    export_records(runs)
+    record = tmp_path / "results" / "records" / "cheetah_plls_dbc" / KEY
+    assert (record / POLICY).stat().st_size < (run_dir / "checkpoints" / "dbc.pt").stat().st_size
+    assert not list(record.rglob("dbc.pt")) and not list(record.rglob("chunk_*")), "no optimisers, no replay"
+    shutil.rmtree(runs)
+    meta = make_filmstrip(record, tmp_path / "strip_record", device="cpu", max_steps=20)
+    assert meta["checkpoint"] == "dbc_policy.pt" and meta["episode_return"] == original["episode_return"]
+    assert (tmp_path / "strip_record" / "frames.npz").read_bytes() == (tmp_path / "strip_run" / "frames.npz").read_bytes()
