@@ -11,6 +11,10 @@ from plls_bench.sweeps import load_sweep
 from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path
 
 
+# algo choices run by another runner on the env's state vector (state SAC: the DBC runner)
+STATE_ALGOS = {"sac_state": ["runner=dbc", "env.pixels=false"]}
+
+
 def overrides_for(yaml_path: Path) -> list[str]:
     """The group choices that make Hydra load ``yaml_path``; fails for a yaml no rule covers,
     so a new config directory cannot slip past this test."""
@@ -31,6 +35,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"+filmstrip={name}", f"env={name}"]
     if group == "algo/exploration":  # PPO's exploration settings; none goes with the other learners
         return ["algo=none"] if name == "none" else ["algo=ppo", "runner=ppo", f"algo/exploration={name}"]
+    if group == "algo" and name in STATE_ALGOS:
+        return [f"algo={name}", "env=cheetah", *STATE_ALGOS[name]]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name.startswith("ppo") else []
         extra += ["env=mountaincar"] if group == "algo" and not name.startswith("dbc") else []
@@ -55,7 +61,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"env={env}", f"budget={profile}"]
     if group in ("budget/per_algo", "budget/per_recipe"):  # <algo>_<env>_<profile>
         algo, env, profile = name.rsplit("_", 2)  # the algo choice may hold "_" (dbc_readme)
-        return [f"algo={algo}", f"runner={algo.split('_')[0]}", f"env={env}", f"budget={profile}"]
+        runner = STATE_ALGOS.get(algo, [f"runner={algo.split('_')[0]}"])
+        return [f"algo={algo}", *runner, f"env={env}", f"budget={profile}"]
     raise AssertionError(f"no composition rule for {rel}: add one to tests/test_config.py")
 
 

@@ -91,9 +91,11 @@ def test_checkpoint_state_restores_identical_learning(runs_dir: Path) -> None:
     assert agent.log_alpha.item() == clone.log_alpha.item()
 
 
-def test_learns_a_contextual_bandit_from_random_actions(runs_dir: Path) -> None:
+@pytest.mark.parametrize("encoder", ["bisim", "identity"])
+def test_learns_a_contextual_bandit_from_random_actions(encoder: str, runs_dir: Path) -> None:
     """Reward 1 - ||a - tanh(W x)||^2 / A for context x: a random policy gets about 0.2; the
-    whole update (critic, actor, temperature, representation losses) must get close to 1."""
+    whole update (critic, actor, temperature, representation losses with ``bisim``; state SAC's
+    critic, actor and temperature alone with ``identity``) must get close to 1."""
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
     dim, action_dim, n = 4, 2, 4096
@@ -106,8 +108,9 @@ def test_learns_a_contextual_bandit_from_random_actions(runs_dir: Path) -> None:
         return 1.0 - ((a - np.tanh(ctx @ w)) ** 2).mean(axis=1)
 
     rewards = reward(actions, x).astype(np.float32)
-    agent = DBCAgent((dim,), action_dim, small_cfg(runs_dir, "algo.dbc.encoder_feature_dim=16",
-                                                   "algo.dbc.hidden_dim=64", "algo.dbc.batch_size=128"))
+    agent = DBCAgent((dim,), action_dim, small_cfg(runs_dir, "algo.dbc.encoder_feature_dim=16", "algo.dbc.hidden_dim=64",
+                                                   "algo.dbc.batch_size=128", f"algo.dbc.encoder={encoder}",
+                                                   "env.pixels=false"))
     for step in range(STEPS):
         i = rng.integers(n, size=128)
         agent.update(Batch(obs=torch.as_tensor(x[i]), action=torch.as_tensor(actions[i]),

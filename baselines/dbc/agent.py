@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import copy
 import math
+from functools import partial
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -19,7 +20,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from baselines.dbc.bisim import bisimulation_loss, reward_loss, transition_loss
-from baselines.dbc.encoder import Encoder, make_trunk, weight_init
+from baselines.dbc.encoder import Encoder, IdentityEncoder, make_trunk, weight_init
 from baselines.dbc.models import Actor, Critic, TransitionModel, reward_decoder
 from plls_bench.config import DBCConfig
 
@@ -43,20 +44,28 @@ def soft_update(net: nn.Module, target: nn.Module, tau: float) -> None:
 
 
 class DBCAgent:
-    """Actor, twin critic (+ target), transition model and reward decoder, with their optimisers.
+    """Actor, twin critic (+ target), transition model and reward decoder (``encoder=bisim``), with
+    their optimisers.
     ``precision`` (the run's ``cfg.precision``) applies to the pixel encoder's conv trunk only."""
 
     def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: DBCConfig,
                  device: torch.device | str = "cpu", precision: str = "fp32") -> None:
         self.cfg, self.device = cfg, torch.device(device)
-        trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim, precision)
-        self.critic = Critic(Encoder(trunk, cfg.encoder_feature_dim), action_dim, cfg.hidden_dim)
-        # the actor shares the critic's trunk (the reference ties the conv weights)
-        self.actor = Actor(Encoder(trunk, cfg.encoder_feature_dim), action_dim, cfg.hidden_dim,
-                           cfg.actor_log_std_min, cfg.actor_log_std_max)
-        self.transition = TransitionModel(cfg.encoder_feature_dim, action_dim, cfg.model_hidden_dim,
-                                          cfg.transition_model == "probabilistic", cfg.sigma_min, cfg.sigma_max)
-        self.reward_decoder = reward_decoder(cfg.encoder_feature_dim, cfg.model_hidden_dim)
+        # bisim: DBC's learned encoder and its losses; identity: state SAC (no representation)
+        self.learns_representation = cfg.encoder == "bisim"
+        encoder: Callable[[], nn.Module] = partial(IdentityEncoder, obs_shape)
+        if self.learns_representation:
+            trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim, precision)
+            # the actor shares the critic's trunk (the reference ties the conv weights)
+            encoder = partial(Encoder, trunk, cfg.encoder_feature_dim)
+        self.critic = Critic(encoder(), action_dim, cfg.hidden_dim)
+        self.actor = Actor(encoder(), action_dim, cfg.hidden_dim, cfg.actor_log_std_min, cfg.actor_log_std_max)
+        self.transition: TransitionModel | None = None
+        self.reward_decoder: nn.Module | None = None
+        if self.learns_representation:
+            self.transition = TransitionModel(cfg.encoder_feature_dim, action_dim, cfg.model_hidden_dim,
+                                              cfg.transition_model == "probabilistic", cfg.sigma_min, cfg.sigma_max)
+            self.reward_decoder = reward_decoder(cfg.encoder_feature_dim, cfg.model_hidden_dim)
         for module in (self.critic, self.actor):  # the reference leaves the models at torch's init
             module.apply(weight_init)
         self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)  # Polyak-averaged only
@@ -69,18 +78,24 @@ class DBCAgent:
     def _make_optimizers(self) -> dict[str, torch.optim.Optimizer]:
         cfg, actor = self.cfg, self.actor
         actor_params = [*actor.trunk.parameters(), *actor.encoder.fc.parameters(), *actor.encoder.ln.parameters()]
-        model_params = [*self.transition.parameters(), *self.reward_decoder.parameters()]
-        return {
+        optimizers = {
             "actor": torch.optim.Adam(actor_params, lr=cfg.actor_lr, betas=(cfg.actor_beta, 0.999)),
             "critic": torch.optim.Adam(self.critic.parameters(), lr=cfg.critic_lr, betas=(cfg.critic_beta, 0.999)),
             "alpha": torch.optim.Adam([self.log_alpha], lr=cfg.alpha_lr, betas=(cfg.alpha_beta, 0.999)),
-            "encoder": torch.optim.Adam(self.critic.encoder.parameters(), lr=cfg.encoder_lr),
-            "decoder": torch.optim.Adam(model_params, lr=cfg.decoder_lr, weight_decay=cfg.decoder_weight_lambda),
         }
+        if self.transition is not None and self.reward_decoder is not None:
+            model_params = [*self.transition.parameters(), *self.reward_decoder.parameters()]
+            optimizers["encoder"] = torch.optim.Adam(self.critic.encoder.parameters(), lr=cfg.encoder_lr)
+            optimizers["decoder"] = torch.optim.Adam(model_params, lr=cfg.decoder_lr,
+                                                     weight_decay=cfg.decoder_weight_lambda)
+        return optimizers
 
     def modules(self) -> dict[str, nn.Module]:
-        return {"actor": self.actor, "critic": self.critic, "critic_target": self.critic_target,
-                "transition_model": self.transition, "reward_decoder": self.reward_decoder}
+        """The agent's networks by checkpoint name (no models without a learned representation)."""
+        modules = {"actor": self.actor, "critic": self.critic, "critic_target": self.critic_target}
+        if self.transition is not None and self.reward_decoder is not None:
+            modules.update(transition_model=self.transition, reward_decoder=self.reward_decoder)
+        return modules
 
     @property
     def alpha(self) -> torch.Tensor:
@@ -100,7 +115,9 @@ class DBCAgent:
 
         As in the reference, the actor and target schedules key on the agent step, so the burst of
         ``init_steps`` updates at the first learning step all update the actor and targets."""
-        metrics = {"loss/critic": self.update_critic(batch), **self.update_representation(batch)}
+        metrics = {"loss/critic": self.update_critic(batch)}
+        if self.learns_representation:
+            metrics.update(self.update_representation(batch))
         if step % self.cfg.actor_update_freq == 0:
             metrics.update(self.update_actor_and_alpha(batch.obs))
         if step % self.cfg.critic_target_update_freq == 0:
@@ -123,6 +140,7 @@ class DBCAgent:
 
     def update_representation(self, batch: Batch) -> dict[str, float]:
         """Encoder, transition model and reward decoder: ``bisim_coef * L_bisim + L_trans + L_reward``."""
+        assert self.transition is not None and self.reward_decoder is not None
         z = self.critic.encoder(batch.obs)
         with torch.no_grad():
             next_z = self.critic.encoder(batch.next_obs)

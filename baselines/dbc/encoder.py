@@ -1,4 +1,5 @@
-"""Observation encoders of DBC: a conv stack (pixels) or an MLP (vectors) to a LayerNorm'd latent.
+"""Observation encoders of DBC: a conv stack (pixels) or an MLP (vectors) to a LayerNorm'd latent,
+or the identity on state vectors (``algo.dbc.encoder=identity``: state SAC, no representation).
 
 The pixel encoder is the reference's ``PixelEncoder`` (deep_bisim4control/encoder.py): uint8
 frames / 255, a 3x3 conv with stride 2, ``num_layers - 1`` 3x3 convs with stride 1, ReLU after
@@ -81,6 +82,42 @@ class Encoder(nn.Module):
     def head(self, features: torch.Tensor, detach_trunk: bool = False) -> torch.Tensor:
         """``detach_trunk`` stops gradients into the (shared) trunk, as the reference's actor does."""
         return self.ln(self.fc(features.detach() if detach_trunk else features))
+
+
+class IdentityEncoder(nn.Module):
+    """State SAC's "encoder": ``(B, D)`` vectors passed on unchanged (as float32), no parameters.
+
+    SAC-AE's ``IdentityEncoder`` (denisyarats/pytorch_sac_ae encoder.py, ``--encoder_type
+    identity``), the state-based SAC baseline CURL and DrQ compare with. It has the
+    :class:`Encoder` interface so the actor and critic use either unchanged."""
+
+    def __init__(self, obs_shape: tuple[int, ...]) -> None:
+        super().__init__()
+        if len(obs_shape) != 1:
+            raise ValueError(f"the identity encoder takes (D,) state vectors, got observation shape {obs_shape}")
+        self.trunk = IdentityTrunk(obs_shape[0])
+        self.fc, self.ln = nn.Identity(), nn.Identity()
+        self.feature_dim = obs_shape[0]
+
+    def forward(self, obs: torch.Tensor, detach_trunk: bool = False) -> torch.Tensor:
+        return self.features(obs)
+
+    def features(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.trunk(obs)
+
+    def head(self, features: torch.Tensor, detach_trunk: bool = False) -> torch.Tensor:
+        return features
+
+
+class IdentityTrunk(nn.Module):
+    """``(B, D)`` -> the same ``(B, D)`` as float32."""
+
+    def __init__(self, dim: int) -> None:
+        super().__init__()
+        self.out_dim = dim
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return obs.float()
 
 
 def make_trunk(obs_shape: tuple[int, ...], num_layers: int, num_filters: int,

@@ -10,7 +10,7 @@ import math
 import torch
 import torch.nn as nn
 
-from baselines.dbc.encoder import Encoder
+from baselines.dbc.encoder import Encoder, IdentityEncoder
 
 
 def mlp(in_dim: int, hidden_dim: int, out_dim: int) -> nn.Sequential:
@@ -23,7 +23,7 @@ def mlp(in_dim: int, hidden_dim: int, out_dim: int) -> nn.Sequential:
 class Actor(nn.Module):
     """tanh-squashed diagonal Gaussian policy on the encoder's latent."""
 
-    def __init__(self, encoder: Encoder, action_dim: int, hidden_dim: int,
+    def __init__(self, encoder: Encoder | IdentityEncoder, action_dim: int, hidden_dim: int,
                  log_std_min: float, log_std_max: float) -> None:
         super().__init__()
         self.encoder = encoder
@@ -51,7 +51,7 @@ class Actor(nn.Module):
 class Critic(nn.Module):
     """Twin Q-functions on the encoder's latent and the action."""
 
-    def __init__(self, encoder: Encoder, action_dim: int, hidden_dim: int) -> None:
+    def __init__(self, encoder: Encoder | IdentityEncoder, action_dim: int, hidden_dim: int) -> None:
         super().__init__()
         self.encoder = encoder
         self.q1 = mlp(encoder.feature_dim + action_dim, hidden_dim, 1)

@@ -100,6 +100,7 @@ class PPOConfig(Validated):
 
 
 TRANSITION_MODELS = ("deterministic", "probabilistic")
+DBC_ENCODERS = ("bisim", "identity")
 
 
 @dataclass
@@ -108,7 +109,12 @@ class DBCConfig(Validated):
 
     Values live in ``conf/algo/dbc.yaml`` with the reference flag each comes from
     (facebookresearch/deep_bisim4control, ``train.py`` and the ``run_*.sh`` launchers).
+    ``encoder``: ``bisim`` (DBC) or ``identity`` (state SAC on the env's state vector, no
+    representation losses; ``conf/algo/sac_state.yaml``). Its default keeps records made before
+    the key existed loading, and it is left out of the config hash at that value.
     """
+
+    encoder: str = "bisim"
 
     transition_model: str = MISSING
     hidden_dim: int = MISSING
@@ -141,6 +147,7 @@ class DBCConfig(Validated):
     bisim_coef: float = MISSING
 
     def validate(self) -> None:
+        check_choice(self.encoder, DBC_ENCODERS, "algo.dbc.encoder")
         check_choice(self.transition_model, TRANSITION_MODELS, "algo.dbc.transition_model")
         for key in ("hidden_dim", "batch_size", "replay_capacity", "encoder_feature_dim", "num_layers",
                     "num_filters", "encoder_lr", "critic_lr", "critic_target_update_freq", "actor_lr",

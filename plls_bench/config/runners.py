@@ -56,9 +56,14 @@ def validate_ppo(cfg: Config) -> None:
 
 
 def validate_dbc(cfg: Config) -> None:
-    """DBC needs its algo section and an encoder that leaves at least a 1x1 feature map."""
+    """DBC needs its algo section and an encoder that leaves at least a 1x1 feature map; state
+    SAC (``algo.dbc.encoder=identity``) needs state vectors, not pixels."""
     _check_algo(cfg, "dbc")
     dbc, size = cfg.algo.dbc, cfg.env.image_size
+    if dbc is not None and dbc.encoder == "identity":
+        check(not cfg.env.pixels, "algo.dbc.encoder",
+              f"identity passes state vectors to the actor and critic; env {cfg.env.name} has pixels=true "
+              f"(use env.pixels=false, or algo.dbc.encoder=bisim)")
     if cfg.env.pixels and dbc is not None:
         sizes = conv_sizes(size, [3] * dbc.num_layers, [2] + [1] * (dbc.num_layers - 1))
         check(min(sizes) >= 1, "env.image_size",

@@ -5,7 +5,7 @@ Modules: ``encoder`` (the critic's conv trunk, shared with the actor, and its Li
 LayerNorm), ``actor`` (its own Linear + LayerNorm head and MLP, from the trunk's features),
 ``critic`` (twin Q on ``[z, a]``), ``critic_target`` (Polyak-averaged: not trainable),
 ``transition_model`` (on ``[z, a]``), ``reward_decoder`` and, for PL-LS + DBC, the frozen
-``V_a.decoder``. Modules whose forward takes several tensors are summarised through a one-input
+``V_a.decoder``. State SAC (``algo.dbc.encoder=identity``) has only actor, critic and target. Modules whose forward takes several tensors are summarised through a one-input
 adapter that runs the same layers in the same order.
 """
 from __future__ import annotations
@@ -48,14 +48,17 @@ def modules_and_examples(agent: DBCAgent, obs_shape: tuple[int, ...],
         "critic": _OneInput(lambda za: (critic.q1(za), critic.q2(za)), q1=critic.q1, q2=critic.q2),
         "critic_target": _OneInput(lambda obs: target(target.encoder.features(obs), torch.zeros(
             len(obs), action_dim, device=obs.device)), critic=target),
-        "transition_model": _OneInput(lambda za: transition(*split(za)), model=transition),
-        "reward_decoder": agent.reward_decoder,
     }
     zeros = {"obs": torch.zeros(1, *obs_shape), "features": torch.zeros(1, features),
              "z": torch.zeros(1, z_dim), "za": torch.zeros(1, z_dim + action_dim)}
     examples = {"encoder": zeros["obs"], "actor": zeros["features"], "critic": zeros["za"],
                 "critic_target": zeros["obs"], "transition_model": zeros["za"], "reward_decoder": zeros["z"]}
-    return modules, {k: v.to(agent.device) for k, v in examples.items()}
+    if transition is not None and agent.reward_decoder is not None:
+        modules["transition_model"] = _OneInput(lambda za: transition(*split(za)), model=transition)
+        modules["reward_decoder"] = agent.reward_decoder
+    else:  # state SAC: no encoder (the identity) and no models
+        del modules["encoder"]
+    return modules, {k: examples[k].to(agent.device) for k in modules}
 
 
 def accounting(agent: DBCAgent, venv: VecEnv) -> tuple[dict[str, Any], dict[str, Any]]:
