@@ -41,6 +41,8 @@ from plls_bench.train.ppo import EpisodeStats  # noqa: E402
 from plls_bench.trunks import memory_format  # noqa: E402
 
 SECTION = "ppo_layouts"
+NO_BF16 = ("bf16 not run here: a CPU without bf16 instructions (no avx512_bf16 / AMX) emulates it, "
+           "7-17x slower than fp32 (results/analysis/precision_validation.md); `--precisions fp32 bf16` adds it.")
 LAYOUTS = {"contiguous": torch.contiguous_format, "channels_last": torch.channels_last}
 
 
@@ -123,7 +125,8 @@ def main(argv: list[str] | None = None) -> int:
         "uint8 rollout frames stay. CPU s is the process's CPU time per iteration. Ratio: steps/s "
         "over contiguous fp32 in the same run.",
         "", "| preset | layout | precision | env steps / iteration | rollout s | update s | steps/s | "
-        "CPU s / iteration | steps per CPU-s | ratio |", "|---|---|---|---|---|---|---|---|---|---|", *table])
+        "CPU s / iteration | steps per CPU-s | ratio |", "|---|---|---|---|---|---|---|---|---|---|", *table,
+        *([] if "bf16" in args.precisions else ["", NO_BF16])])
     if not args.no_write:
         write_section(SECTION, text)
     return 0
