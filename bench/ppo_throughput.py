@@ -17,9 +17,10 @@ import statistics
 import sys
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import torch
+from stable_baselines3 import PPO
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
@@ -36,10 +37,12 @@ from plls_bench.train.ppo import EpisodeStats  # noqa: E402
 SECTION = "ppo_throughput"
 
 
-def measure(preset: str, budget: str, iterations: int, runs_dir: str,
-            overrides: Sequence[str] = ()) -> dict[str, float]:
-    """Median seconds of rollout and update per PPO iteration, and env steps per second.
-    ``overrides`` (e.g. a shorter ``algo.ppo.n_steps``) are applied after the preset's."""
+Sample = tuple[float, float, float]  # rollout s, total s, process CPU s of one PPO iteration
+
+
+def build(preset: str, budget: str, runs_dir: str, overrides: Sequence[str] = ()) -> tuple[Any, PPO, int]:
+    """The preset's training vector env and SB3 model, built exactly as the ``ppo`` runner builds
+    them, and the env steps of one iteration. ``overrides`` apply after the preset's."""
     cfg = compose([f"+experiment={preset}", f"budget={budget}", f"runs_dir={runs_dir}", "progress=false",
                    *overrides])
     assert cfg.algo.ppo is not None
@@ -48,22 +51,34 @@ def measure(preset: str, budget: str, iterations: int, runs_dir: str,
     seed = derive_seeds(cfg.seed, cfg.data_seed).train
     seed_everything(seed)
     venv = build_vec_env(cfg, cfg.algo.ppo.n_envs, seed, load_representations(cfg))  # never trains
-    model = new_model(cfg, venv)
-    steps = cfg.algo.ppo.steps_per_iteration
-    stats, rollout, total, cpu = EpisodeStats(), [], [], []
-    try:
-        for i in range(iterations + 1):  # iteration 0 warms up
-            start, start_cpu = time.perf_counter(), time.process_time()
-            model.learn(steps, callback=stats, reset_num_timesteps=False, log_interval=None)
-            if i:
-                rollout.append(stats.rollout_end - start)
-                total.append(time.perf_counter() - start)
-                cpu.append(time.process_time() - start_cpu)
-    finally:
-        venv.close()
-    r, t, c = statistics.median(rollout), statistics.median(total), statistics.median(cpu)
+    return venv, new_model(cfg, venv), cfg.algo.ppo.steps_per_iteration
+
+
+def iteration(model: PPO, steps: int, stats: EpisodeStats) -> Sample:
+    """One PPO iteration (rollout, then the update; no evaluation), timed."""
+    start, start_cpu = time.perf_counter(), time.process_time()
+    model.learn(steps, callback=stats, reset_num_timesteps=False, log_interval=None)
+    return stats.rollout_end - start, time.perf_counter() - start, time.process_time() - start_cpu
+
+
+def summarize(steps: int, samples: list[Sample]) -> dict[str, float]:
+    """Medians of ``samples`` as seconds and env steps per second (wall and CPU)."""
+    r, t, c = (statistics.median(column) for column in zip(*samples))
     return {"steps": steps, "rollout_s": r, "update_s": t - r, "rollout_sps": steps / r, "sps": steps / t,
             "cpu_s": c, "cpu_sps": steps / c, "threads": torch.get_num_threads()}
+
+
+def measure(preset: str, budget: str, iterations: int, runs_dir: str,
+            overrides: Sequence[str] = ()) -> dict[str, float]:
+    """Median seconds of rollout and update per PPO iteration, and env steps per second.
+    ``overrides`` (e.g. a shorter ``algo.ppo.n_steps``) are applied after the preset's."""
+    venv, model, steps = build(preset, budget, runs_dir, overrides)
+    stats = EpisodeStats()
+    try:
+        samples = [iteration(model, steps, stats) for _ in range(iterations + 1)][1:]  # the first warms up
+    finally:
+        venv.close()
+    return summarize(steps, samples)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -32,7 +32,7 @@ from bench import dbc_throughput, ppo_throughput  # noqa: E402
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
-from plls_bench.config import Config  # noqa: E402
+from plls_bench.config import PRECISIONS, Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
 from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_suffix  # noqa: E402
 from plls_bench.runner_specs import runner_spec  # noqa: E402
@@ -134,26 +134,29 @@ MEASURES: dict[str, tuple[Measure, bool]] = {
 def rate_keys(cfg: Config) -> list[str]:
     """The rate keys ``plls_bench.plan`` looks up for a preset (env-bound ones per backend)."""
     spec, env, preset = runner_spec(cfg.runner), cfg.env.name, cfg.experiment
-    engine = rate_suffix(cfg)
     if spec.trains_policy:
-        return [f"train/{preset}{engine}", f"eval/{preset}{engine}"]
+        return [f"train/{preset}{rate_suffix(cfg)}", f"eval/{preset}{rate_suffix(cfg)}"]
     if spec.costs_per_run:
         return [f"{spec.name}/{preset}"]
     if MEASURES[spec.name][1]:  # collection
-        return [f"collect/{env}{engine}"]
-    return [f"repr_{w}/{env}" for w in ("state", "action") if getattr(cfg.repr, w).kind == "vae"]
+        return [f"collect/{env}{rate_suffix(cfg, precision_bound=False)}"]
+    return [f"repr_{w}/{env}{rate_suffix(cfg, False, w == 'state')}" for w in ("state", "action")
+            if getattr(cfg.repr, w).kind == "vae"]
 
 
 def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float, str]]:
     """Measured rates of ``preset``'s keys that ``args.keys`` selects: key -> (value, unit)."""
-    engine = (f"env.backend={args.backend}",)  # explicit: a profile may choose another backend
+    # explicit: a profile may choose another backend
+    engine = (f"env.backend={args.backend}", f"precision={args.precision}")
     if args.backend != "gymnasium":
         base = _config(preset, args.budget, args.runs)
         if base.env.gym_id not in ENVPOOL_GYM_IDS or not MEASURES[base.runner][1]:
             return {}  # envpool's tasks only, and only work that steps the env
     cfg = _config(preset, args.budget, args.runs, *engine)
     keys = rate_keys(cfg)
-    if args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in keys):
+    if args.precision != "fp32":  # only rates through conv trunks have per-precision keys
+        keys = [key for key in keys if key.endswith(f"@{args.precision}")]
+    if not keys or args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in keys):
         return {}
     measure, _ = MEASURES[cfg.runner]
     return dict(zip(keys, measure(cfg, keys, args, engine)))
@@ -190,6 +193,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", default="quick", help="budget whose algorithm settings are used")
     parser.add_argument("--backend", default="gymnasium", choices=ENV_BACKENDS,
                         help="env.backend to measure (envpool: the tasks it ships; keys get @envpool)")
+    parser.add_argument("--precision", default="fp32", choices=PRECISIONS,
+                        help="precision to measure (bf16: the rates through conv trunks, keys get @bf16)")
     parser.add_argument("--collect-steps", type=int, default=200, help="steps per env of collection")
     parser.add_argument("--state-samples", type=int, default=500, help="frames in the V_s epoch")
     parser.add_argument("--action-samples", type=int, default=20000, help="actions in the V_a epoch")

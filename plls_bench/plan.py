@@ -95,20 +95,22 @@ def preset_config(experiment: str, profile: str, runs_dir: str, overrides: tuple
 
 
 def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
-                 rates: dict[str, float] | None = None, count_records: bool = True) -> list[PresetPlan]:
+                 rates: dict[str, float] | None = None, count_records: bool = True,
+                 overrides: tuple[str, ...] = ()) -> list[PresetPlan]:
     """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials; a
-    trial done in the committed records beside ``runs_dir`` counts as done unless not ``count_records``."""
+    trial done in the committed records beside ``runs_dir`` counts as done unless not ``count_records``.
+    ``overrides`` (e.g. ``precision=bf16``) apply to every preset, as on its command line."""
     presets = list_presets()
     chosen = select_presets(presets, only) if only else presets
-    return _costed([_plan_preset(name, profile, runs_dir, count_records) for name in chosen], rates)
+    return _costed([_plan_preset(name, profile, runs_dir, count_records, overrides) for name in chosen], rates)
 
 
 def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float] | None = None,
-               count_records: bool = True) -> list[PresetPlan]:
+               count_records: bool = True, overrides: tuple[str, ...] = ()) -> list[PresetPlan]:
     """A sweep (``conf/sweep/``): its preset's own runs (the arm of its own value), then one plan
     per other value with that value's override; each value's V_a (or other artifact) is costed once."""
-    plans = [_plan_preset(sweep.preset, profile, runs_dir, count_records)]
-    plans += [_plan_preset(sweep.preset, profile, runs_dir, count_records, (sweep.override(v),))
+    plans = [_plan_preset(sweep.preset, profile, runs_dir, count_records, overrides)]
+    plans += [_plan_preset(sweep.preset, profile, runs_dir, count_records, (sweep.override(v), *overrides))
               for v in sweep.others]
     return _costed(plans, rates)
 
@@ -124,14 +126,14 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
 
 def _plan_preset(experiment: str, profile: str, runs_dir: str, count_records: bool,
                  overrides: tuple[str, ...] = ()) -> PresetPlan:
-    """``overrides``: at most one ``key=value`` (a sweep value), which names the run dir's variant
-    as Hydra's ``override_dirname`` does (conf/config.yaml)."""
+    """``overrides``: ``key=value`` settings (a sweep value, ``precision``), which name the run
+    dir's variant as Hydra's ``override_dirname`` does (conf/config.yaml: sorted, comma-joined)."""
     first = preset_config(experiment, profile, runs_dir, overrides)
     trials, records = [], records_dir_for(runs_dir)
     for seed in range(first.budget.trials):
         # the seed is a plain field that no other value interpolates: replace() equals composing seed=k
         cfg = dataclasses.replace(first, seed=seed)
-        variant = variant_name(cfg.variant, ",".join(overrides), cfg.env.backend)
+        variant = variant_name(cfg.variant, ",".join(sorted(overrides)), cfg.env.backend)
         path = run_dir_path(runs_dir, experiment, variant, seed)
         cfg_hash = config_hash(cfg)
         trials.append(Trial(seed, path, Run(path).is_done(cfg_hash), cfg,
@@ -159,27 +161,32 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
 
     env, budget, work, spec = cfg.env.name, cfg.budget, [], runner_spec(cfg.runner)
-    engine = rate_suffix(cfg)
     data_steps = budget.data_episodes * budget.data_steps_per_episode
     trained = [which for which in ("state", "action") if getattr(cfg.repr, which).kind == "vae"
                and _first(costed, cfg.runs_dir, f"repr_{which}", _repr_identity(cfg, which))]
     # a recorded V_s / V_a is restored, not trained: it needs no dataset
     if (spec.uses_dataset or trained) and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
-        work.append((f"collect/{env}{engine}", data_steps))
+        work.append((f"collect/{env}{rate_suffix(cfg, precision_bound=False)}", data_steps))
     for which in trained:
         samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
-        work.append((f"repr_{which}/{env}", samples))
+        # only V_s has conv trunks: V_a's rate does not depend on the precision
+        work.append((f"repr_{which}/{env}{rate_suffix(cfg, False, which == 'state')}", samples))
     if spec.trains_policy:
-        work.append((f"train/{cfg.experiment}{engine}", budget.train_env_steps))
-        work.append((f"eval/{cfg.experiment}{engine}", _eval_env_steps(cfg)))
+        work.append((f"train/{cfg.experiment}{rate_suffix(cfg)}", budget.train_env_steps))
+        work.append((f"eval/{cfg.experiment}{rate_suffix(cfg)}", _eval_env_steps(cfg)))
     if spec.costs_per_run:
         work.append((f"{spec.name}/{cfg.experiment}", 1))
     return work
 
 
-def rate_suffix(cfg: Config) -> str:
-    """Env-bound rate keys (collection, training, evaluation) per backend: ``train/<preset>@envpool``."""
-    return f"@{cfg.env.backend}" if backend_tag(cfg.env.backend) else ""
+def rate_suffix(cfg: Config, env_bound: bool = True, precision_bound: bool = True) -> str:
+    """The one place rate keys get their tags: ``@<backend>`` for env-bound work (collection,
+    training, evaluation) off gymnasium, then ``@<precision>`` for work through conv trunks off
+    fp32 (fp32 keeps the bare keys measured before ``precision`` existed):
+    ``train/carracing_ppo@envpool@bf16``. A bf16 run with no bf16 rate is a missing rate."""
+    tags = [cfg.env.backend] if env_bound and backend_tag(cfg.env.backend) else []
+    tags += [cfg.precision] if precision_bound and cfg.precision != "fp32" else []
+    return "".join(f"@{tag}" for tag in tags)
 
 
 def _eval_env_steps(cfg: Config) -> int:

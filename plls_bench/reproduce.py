@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from plls_bench.composition import CONF_DIR, filmstrip_config
-from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError, FilmstripConfig
+from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, FilmstripConfig
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile, plan_sweep
@@ -175,6 +175,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--sweep", metavar="NAME",
                         help=f"run a declared sweep instead of whole presets (conf/sweep/NAME.yaml: {', '.join(sweep_names())}): "
                              "its preset's own runs and one variant per other value")
+    parser.add_argument("--precision", choices=PRECISIONS, default="fp32",
+                        help="conv trunks' precision for every preset (default fp32, every preset's own): "
+                             "bf16 adds precision=bf16 to each run (its run dir variant) and costs it "
+                             "with bf16 rates")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
@@ -203,10 +207,13 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_report:
             check_writable_dir(args.out, "--out")
         count_records = not args.rerun_recorded
+        # fp32 adds nothing: the presets' own value, so their run dirs stay where they are
+        extra = (f"precision={args.precision}",) if args.precision != "fp32" else ()
         if args.sweep:
-            plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs, count_records=count_records)
+            plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs, count_records=count_records,
+                               overrides=extra)
         else:
-            plans = plan_profile(args.profile, args.runs, args.only, count_records=count_records)
+            plans = plan_profile(args.profile, args.runs, args.only, count_records=count_records, overrides=extra)
     except ConfigError as err:
         print(f"reproduce: {err}", file=sys.stderr)
         return 2

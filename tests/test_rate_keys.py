@@ -1,0 +1,54 @@
+"""Throughput rate keys per backend and precision: the one suffix builder (``plan.rate_suffix``),
+the keys ``bench/throughput.py`` measures, and the plan's lookup (nothing here is timed)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bench.throughput import rate_keys
+from plls_bench.plan import plan_profile, rate_suffix
+from tests.conftest import compose_preset
+
+TRAIN, EVAL = "train/carracing_ppo", "eval/carracing_ppo"
+
+
+@pytest.mark.parametrize("backend, precision, full, env_only, precision_only", [
+    ("gymnasium", "fp32", "", "", ""),
+    ("envpool", "fp32", "@envpool", "@envpool", ""),
+    ("gymnasium", "bf16", "@bf16", "", "@bf16"),
+    ("envpool", "bf16", "@envpool@bf16", "@envpool", "@bf16"),
+])
+def test_the_suffix_tags_backend_then_precision_where_each_applies(
+        runs_dir: Path, backend: str, precision: str, full: str, env_only: str, precision_only: str) -> None:
+    cfg = compose_preset("carracing_ppo", runs_dir, "budget=quick", f"env.backend={backend}",
+                         f"precision={precision}")
+    assert rate_suffix(cfg) == full
+    assert rate_suffix(cfg, precision_bound=False) == env_only
+    assert rate_suffix(cfg, env_bound=False) == precision_only
+
+
+def test_bench_measures_the_keys_the_plan_looks_up(runs_dir: Path) -> None:
+    cfg = compose_preset("carracing_ppo", runs_dir, "budget=quick", "env.backend=envpool", "precision=bf16")
+    assert rate_keys(cfg) == [f"{TRAIN}@envpool@bf16", f"{EVAL}@envpool@bf16"]
+    vs = compose_preset("carracing_vs", runs_dir, "budget=quick", "precision=bf16")
+    assert rate_keys(vs) == ["repr_state/carracing@bf16"]  # V_s has conv trunks
+    va = compose_preset("carracing_va", runs_dir, "budget=quick", "precision=bf16")
+    assert rate_keys(va) == ["repr_action/carracing"]  # V_a is an MLP: one rate for both
+
+
+def test_a_bf16_plan_uses_bf16_rates_and_never_falls_back_to_fp32(runs_dir: Path) -> None:
+    fp32_rates = {f"{TRAIN}@envpool": 100.0, f"{EVAL}@envpool": 1000.0}
+    quick = ["carracing_ppo"]
+    fp32 = plan_profile("quick", str(runs_dir), only=quick, rates=fp32_rates, overrides=(), count_records=False)[0]
+    assert fp32.seconds is not None and not fp32.missing_rates
+    bf16 = plan_profile("quick", str(runs_dir), only=quick, rates=fp32_rates, overrides=("precision=bf16",),
+                        count_records=False)[0]
+    assert bf16.seconds is None, "no bf16 rate: the estimate must say so, not use the fp32 one"
+    assert bf16.missing_rates == [f"{EVAL}@envpool@bf16", f"{TRAIN}@envpool@bf16"]
+    assert all(t.cfg.precision == "bf16" and t.run_dir.parent.name == "precision=bf16,env.backend=envpool" for t in bf16.trials)
+    # half the fp32 rates: twice the fp32 estimate
+    both = {**fp32_rates, **{f"{key}@bf16": rate / 2 for key, rate in fp32_rates.items()}}
+    costed = plan_profile("quick", str(runs_dir), only=quick, rates=both, overrides=("precision=bf16",),
+                          count_records=False)[0]
+    assert costed.seconds == pytest.approx(2 * fp32.seconds)
