@@ -173,7 +173,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--only", nargs="+", metavar="PRESET",
                         help="run only these presets (names or globs, e.g. 'mountaincar_*')")
     parser.add_argument("--sweep", metavar="NAME",
-                        help=f"run a declared sweep instead of whole presets (conf/sweep/NAME.yaml: {', '.join(sweep_names())}): "
+                        help=f"run a declared sweep instead of whole presets (conf/sweep/<name>.yaml: {', '.join(sweep_names())}): "
                              "its preset's own runs and one variant per other value")
     parser.add_argument("--precision", choices=PRECISIONS, default="fp32",
                         help="conv trunks' precision for every preset (default fp32, every preset's own): "
