@@ -123,7 +123,7 @@ def test_a_trunk_that_does_not_fit_the_observations_is_refused() -> None:
 # --------------------------------------------------------------------------- budgets
 @pytest.mark.parametrize(("env", "budget", "iterations", "eval_every"), [
     ("mountaincar", "paper", 1500, 10), ("mountaincar", "quick", 100, 5), ("mountaincar", "smoke", 2, 1),
-    ("carracing", "paper", 120, 2), ("carracing", "quick", 10, 2), ("carracing", "smoke", 2, 1),
+    ("carracing", "paper", 120, 2), ("carracing", "quick", 64, 4), ("carracing", "smoke", 2, 1),
 ])
 def test_budgets_in_ppo_iterations(env: str, budget: str, iterations: int, eval_every: int) -> None:
     plan = Plan.of(compose([f"+experiment={env}_ppo", f"budget={budget}"]))
