@@ -18,6 +18,7 @@ from plls_bench.composition import compose
 from plls_bench.config import Config
 from plls_bench.report.registry import ENTRIES
 from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json, run_dir_path
+from plls_bench.sweeps import load_sweep, sweep_names
 
 # The group choices of each registry preset; shipped presets where they exist (PPO: issue 4, the
 # MountainCar studies: issue 6), the rest until their issues ship them.
@@ -172,6 +173,10 @@ def fill(run: Run, cfg: Config, rng: np.random.Generator) -> None:
         write_architecture(run, trainable="plls" not in name)
         if name in PLLS_FILMSTRIPS and cfg.seed == 0:
             write_filmstrip(run, *PLLS_FILMSTRIPS[name])
+        if cfg.runner == "ppo" and cfg.repr.action.kind == "vae":  # PPO runs record their V_a's test MSE
+            run.write_json("metrics/repr_test.json", {"action": {
+                "test_mse": 0.01, "test_mse_posterior_mean": 0.001, "n_test": 100,
+                "artifact": f"va-{cfg.repr.action.latent_dim}-{cfg.seed}"}})
     elif cfg.runner == "collect":
         run.write_json("metrics/dataset.json", {"task": cfg.env.name, "transitions": 10_000, "episodes": 10,
                                                 "episode_return_mean": -55.3, "episode_return_std": 18.0})
@@ -196,4 +201,12 @@ def build_all(runs_dir: Path, budget: str = "quick") -> list[Path]:
             fill(run, cfg, rng)
             finish(run, cfg)
             paths.append(run.path)
+    for sweep in map(load_sweep, sweep_names()):  # each declared sweep's other values, as override variants
+        for value in sweep.others:
+            override = sweep.override(value)
+            for seed in range(_compose(sweep.preset, budget, str(runs_dir), override).budget.trials):
+                run, cfg = make_run(runs_dir, sweep.preset, seed, budget, override, variant=override)
+                fill(run, cfg, rng)
+                finish(run, cfg)
+                paths.append(run.path)
     return paths
