@@ -11,6 +11,7 @@ from plls_bench.plan import list_presets
 from plls_bench.report.collect import IdStatus, verify_outputs
 from plls_bench.report.registry import ENTRIES
 from plls_bench.reproduce import filmed_presets
+from plls_bench.sweeps import load_sweep, sweep_names
 from tests.test_reproduce import reproduce
 
 
@@ -27,7 +28,13 @@ def test_smoke_profile_runs_every_preset_and_renders_every_id(tmp_path: Path) ->
     assert list(statuses) == [entry.id for entry in ENTRIES]
     # every id has its runs; "partial" only for content a tiny budget lacks (Fig 14's grass frame)
     assert {i: s.status for i, s in statuses.items() if s.status not in ("ok", "partial")} == {}
-    assert all(s.trials and min(s.trials.values()) >= 1 for s in statuses.values() if s.kind == "figure")
+    # a declared sweep's other values run only with `reproduce --sweep`, never in a profile: their
+    # arms in a sweep figure have no trials here, every other curve has at least one
+    sweep_only = {f"{sw.key.rsplit('.', 1)[-1]}={v}" for sw in map(load_sweep, sweep_names()) for v in sw.others}
+    for s in (s for s in statuses.values() if s.kind == "figure"):
+        ran = {arm: n for arm, n in s.trials.items() if arm not in sweep_only}
+        assert ran and min(ran.values()) >= 1, (s.id, s.trials)
+        assert all(s.trials[arm] == 0 for arm in s.trials.keys() & sweep_only), (s.id, s.trials)
     assert verify_outputs(out, statuses) == []
     readme = (out / "README.md").read_text()
     for entry in ENTRIES:
