@@ -215,7 +215,7 @@ def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) 
                 "carracing_ppo/default seed=1: metrics/eval.jsonl: truncated last line skipped",
                 "carracing_ppo/default seed=1: curve ends before the method's last evaluation: comparisons "
                 "are judged where every trial reaches",
-                "cheetah_dbc/default: seed(s) 1 missing (budget.trials=2)",
+                "cheetah_dbc/default: seed(s) 1, 2 missing (budget.trials=3)",
                 "cheetah_dbc/default seed=0: status failed (RuntimeError: boom)",
                 "cheetah_dbc/default seed=0: metrics/eval.jsonl: 1 corrupt line(s) skipped",
                 "carracing_va/default seed=0: samples/action_reconstructions.npz missing or unreadable",
