@@ -12,11 +12,22 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 
 
+def cpu_model() -> str:
+    """The CPU's model name from ``/proc/cpuinfo`` (machines differ between sessions), else the arch."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def machine() -> str:
-    """Host, CPU, cores, load average (timings on a shared machine need it) and torch version."""
+    """Host, CPU model, cores, load average (timings on a shared machine need it) and torch version."""
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    cpu = platform.processor() or platform.machine()
-    return f"{platform.node()}: {cpu}, {os.cpu_count()} cores, load average {load}; torch {torch.__version__}"
+    return (f"{platform.node()}: {platform.machine()}, {cpu_model()}, {os.cpu_count()} cores, "
+            f"load average {load}; torch {torch.__version__}")
 
 
 def announce(script: str, argv: list[str] | None) -> str:
@@ -36,3 +47,21 @@ def write_section(section: str, text: str, path: Path = REPO / "BENCHMARKS.md") 
     else:
         new = old.rstrip() + "\n\n" + block + "\n"
     path.write_text(new if new.endswith("\n") else new + "\n")
+
+
+def finish_section(section: str, title: str, command: str, method: str, header: list[str],
+                   rows: list[str], notes: list[str] | None = None, write: bool = True,
+                   path: Path = REPO / "BENCHMARKS.md") -> str:
+    """Print the machine after the run, assemble a section and write it unless ``write`` is false.
+
+    ``header`` holds the column names; the text is: title, command, machine, the ``method``
+    paragraph, the table, then ``notes`` (lines after a blank line). Returns the text.
+    """
+    after = machine()
+    print(f"machine (after): {after}", flush=True)
+    table = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header), *rows]
+    text = "\n".join([f"## {title}", "", f"Command: `{command}`  ", f"Machine (after): {after}  ",
+                      method, "", *table, *(["", *notes] if notes else [])])
+    if write:
+        write_section(section, text, path)
+    return text

@@ -30,7 +30,7 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, finish_section, machine  # noqa: E402
 from bench.dbc_throughput import build_trainer  # noqa: E402
 
 SECTION = "dbc_threads"
@@ -106,21 +106,18 @@ def main(argv: list[str] | None = None) -> int:
     for policy in POLICIES:
         results[policy] = run_policy(policy, args)
         print(f"OMP_WAIT_POLICY={policy or 'unset'}: {results[policy]}  ({machine()})", flush=True)
-    after, table = machine(), rows(results)
-    print("\n".join(table) + f"\nmachine (after): {after}")
-    text = "\n".join([
-        f"## DBC update at 1 and 2 torch threads, per OpenMP wait policy (`bench/dbc_threads.py`, "
-        f"`{args.preset}`, budget={args.budget})", "",
-        f"Command: `{command}`  ", f"Machine: {after}  ",
+    table = rows(results)
+    print("\n".join(table))
+    finish_section(
+        SECTION, f"DBC update at 1 and 2 torch threads, per OpenMP wait policy (`bench/dbc_threads.py`, "
+        f"`{args.preset}`, budget={args.budget})", command,
         f"One fixed minibatch, {args.rounds} updates per thread count after one warm-up, 1 and 2 threads "
         "alternating; one child process per `OMP_WAIT_POLICY`. CPU s is the process time of all threads: "
         "a useful second thread keeps CPU s near the 1-thread figure and cuts wall s; CPU s that grows "
         "with no gain in wall s is waiting. CPU / wall near 1 at 2 threads means the process had one "
-        "core's worth of time in all.", "",
-        "| OMP_WAIT_POLICY | threads | wall s / update (median) | range | CPU s / update | CPU / wall "
-        "| wall vs 1 thread |", "|---|---|---|---|---|---|---|", *table])
-    if not args.no_write:
-        write_section(SECTION, text)
+        "core's worth of time in all.",
+        ["OMP_WAIT_POLICY", "threads", "wall s / update (median)", "range", "CPU s / update", "CPU / wall",
+         "wall vs 1 thread"], table, write=not args.no_write)
     return 0
 
 

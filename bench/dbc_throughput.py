@@ -26,7 +26,7 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, finish_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.repr.store import load_representations  # noqa: E402
 from plls_bench.runs import Run  # noqa: E402
@@ -94,20 +94,15 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(f"| `{preset}` | {threads} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | {m['cpu_s']:.2f} | "
                         f"**{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
             print(rows[-1], flush=True)
-    after = machine()
-    print(f"machine (after): {after}")
-    text = "\n".join([
-        f"## DBC updates and env steps per second (`bench/dbc_throughput.py`, budget={args.budget})", "",
-        f"Command: `{command}`  ", f"Machine: {after}  ",
-        f"Acting: {args.steps} agent steps (render, stochastic policy, replay insert; no updates), in env "
+    finish_section(
+        SECTION, f"DBC updates and env steps per second (`bench/dbc_throughput.py`, budget={args.budget})",
+        command, f"Acting: {args.steps} agent steps (render, stochastic policy, replay insert; no updates), in env "
         f"steps (frames) per second. Updates: median of {args.updates} full DBC updates after 2 warm-up. "
         "CPU s / update is the process time (all threads), less sensitive than wall time to other "
         "processes on a shared machine. Replay bytes per transition: this suite's frame replay / the "
-        "reference's layout.", "",
-        "| preset | torch threads | acting env steps/s | batch | s / update | CPU s / update | updates/s "
-        "| replay bytes |", "|---|---|---|---|---|---|---|---|", *rows])
-    if not args.no_write:
-        write_section(SECTION, text)
+        "reference's layout.",
+        ["preset", "torch threads", "acting env steps/s", "batch", "s / update", "CPU s / update", "updates/s",
+         "replay bytes"], rows, write=not args.no_write)
     return 0
 
 

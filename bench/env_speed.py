@@ -29,7 +29,7 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, finish_section  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.envs import make_vec_env  # noqa: E402
 
@@ -103,22 +103,19 @@ def main(argv: list[str] | None = None) -> int:
     command = announce("env_speed.py", argv)
     rates = env_rates(args.envs, args.steps, args.rounds)
     encoder = encoder_rate(args.envs, 50)
-    after = machine()
-    print(f"V_s encoder forward: {encoder:.0f} frames/s per thread (batch {args.envs})\nmachine (after): {after}")
+    print(f"V_s encoder forward: {encoder:.0f} frames/s per thread (batch {args.envs})")
     base = statistics.median(rates[next(iter(SETTINGS))])
     rows = [f"| {name} | {statistics.median(r):,.0f} | {min(r):,.0f} - {max(r):,.0f} | "
             f"**{statistics.median(r) / base:.1f}x** |" for name, r in rates.items()]
-    text = "\n".join([
-        "## CarRacing env steps per second, gymnasium vs envpool (`bench/env_speed.py`)", "",
-        f"Command: `{command}`  ", f"Machine: {after}  ",
+    finish_section(
+        SECTION, "CarRacing env steps per second, gymnasium vs envpool (`bench/env_speed.py`)", command,
         f"{args.envs} envs, {args.steps} vector steps of uniform random actions per measurement, "
         f"{args.rounds} rounds interleaved across the settings; median and range of the rounds. Ratios "
-        "are against gymnasium in one thread, measured in the same run.", "",
-        "| setting | env steps/s (median) | range | ratio |", "|---|---|---|---|", *rows, "",
-        f"V_s encoder forward, batch {args.envs}, one torch thread: **{encoder:,.0f} frames/s**: the "
-        "most a PL-LS or V_s-only rollout can step per thread, however fast the env."])
-    if not args.no_write:
-        write_section(SECTION, text)
+        "are against gymnasium in one thread, measured in the same run.",
+        ["setting", "env steps/s (median)", "range", "ratio"], rows,
+        notes=[f"V_s encoder forward, batch {args.envs}, one torch thread: **{encoder:,.0f} frames/s**: the "
+               "most a PL-LS or V_s-only rollout can step per thread, however fast the env."],
+        write=not args.no_write)
     return 0
 
 

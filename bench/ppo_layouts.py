@@ -31,7 +31,7 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, finish_section  # noqa: E402
 from bench.ppo_throughput import Sample, build, iteration, summarize  # noqa: E402
 from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
@@ -111,12 +111,9 @@ def main(argv: list[str] | None = None) -> int:
     for preset in args.presets:
         table += rows(preset, run_settings(preset, args))
         print("\n".join(table[-len(args.layouts) * len(args.precisions):]), flush=True)
-    after = machine()
-    print(f"machine (after): {after}")
-    text = "\n".join([
-        f"## PPO env steps/s per conv layout and precision (`bench/ppo_layouts.py`, budget={args.budget})", "",
-        f"Command: `{command}`  ", f"Machine (after): {after}  ",
-        f"Median of the timed iterations (`--iterations {args.iterations}`, bf16 at most "
+    finish_section(
+        SECTION, f"PPO env steps/s per conv layout and precision (`bench/ppo_layouts.py`, budget={args.budget})",
+        command, f"Median of the timed iterations (`--iterations {args.iterations}`, bf16 at most "
         f"{args.bf16_iterations}) after one warm-up per setting, interleaved round-robin over the "
         "settings so load drifts hit all alike. "
         + (f"Horizon shortened to n_steps={args.n_steps} per env; " if args.n_steps else "Preset horizon; ")
@@ -124,11 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         "policy back to contiguous_format (the layout before every conv trunk ran channels_last); "
         "uint8 rollout frames stay. CPU s is the process's CPU time per iteration. Ratio: steps/s "
         "over contiguous fp32 in the same run.",
-        "", "| preset | layout | precision | env steps / iteration | rollout s | update s | steps/s | "
-        "CPU s / iteration | steps per CPU-s | ratio |", "|---|---|---|---|---|---|---|---|---|---|", *table,
-        *([] if "bf16" in args.precisions else ["", NO_BF16])])
-    if not args.no_write:
-        write_section(SECTION, text)
+        ["preset", "layout", "precision", "env steps / iteration", "rollout s", "update s", "steps/s",
+         "CPU s / iteration", "steps per CPU-s", "ratio"], table,
+        notes=None if "bf16" in args.precisions else [NO_BF16], write=not args.no_write)
     return 0
 
 

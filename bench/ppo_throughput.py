@@ -25,7 +25,7 @@ from stable_baselines3 import PPO
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
+from bench.benchmarks_md import announce, finish_section  # noqa: E402
 from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS  # noqa: E402
@@ -106,20 +106,14 @@ def main(argv: list[str] | None = None) -> int:
                     f"{m['rollout_sps']:.0f} | **{m['sps']:.0f}** | {m['cpu_s']:.2f} | {m['cpu_sps']:.0f} | "
                     f"{m['threads']} |")
         print(rows[-1], flush=True)
-    after = machine()
-    print(f"machine (after): {after}")
-    text = "\n".join([
-        f"## PPO env steps per second (`bench/ppo_throughput.py`, budget={args.budget})", "",
-        f"Command: `{command}`  ", f"Machine: {after}  ",
+    finish_section(
+        SECTION, f"PPO env steps per second (`bench/ppo_throughput.py`, budget={args.budget})", command,
         f"Median of {args.iterations} PPO iterations after one warm-up; one iteration = n_envs x n_steps "
         "env steps, rollout (env steps, policy forward, V_s / V_a forward) then the SB3 update "
         "(n_epochs over minibatches). No evaluation. CPU s is the process's CPU time per iteration "
         "(in-process vector env): steps per CPU-second are less disturbed by other load than steps/s.",
-        "", "| preset | env steps / iteration | rollout s | update s | rollout steps/s | steps/s | "
-        "CPU s / iteration | steps per CPU-s | torch threads |",
-        "|---|---|---|---|---|---|---|---|---|", *rows])
-    if not args.no_write:
-        write_section(SECTION, text)
+        ["preset", "env steps / iteration", "rollout s", "update s", "rollout steps/s", "steps/s",
+         "CPU s / iteration", "steps per CPU-s", "torch threads"], rows, write=not args.no_write)
     return 0
 
 

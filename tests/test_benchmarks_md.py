@@ -1,0 +1,27 @@
+"""BENCHMARKS.md sections: every bench script assembles and replaces its section the same way."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from bench.benchmarks_md import finish_section
+
+
+def test_a_section_is_assembled_and_replaced_in_place(tmp_path: Path) -> None:
+    path = tmp_path / "BENCHMARKS.md"
+    path.write_text("# Benchmarks\n\nhand-written text\n")
+    args = ("speed", "Speed (`bench/x.py`)", "nice -n 10 python bench/x.py", "How it was measured.",
+            ["setting", "steps/s"])
+    first = finish_section(*args, ["| a | **1** |"], notes=["A note."], path=path)
+    assert first.splitlines()[:3] == ["## Speed (`bench/x.py`)", "", "Command: `nice -n 10 python bench/x.py`  "]
+    assert "| setting | steps/s |\n|---|---|\n| a | **1** |\n\nA note." in first
+    assert "cores, load average" in first.splitlines()[3]
+    finish_section(*args, ["| b | **2** |"], path=path)
+    text = path.read_text()
+    assert text.count("<!-- speed:begin -->") == 1 and "| b | **2** |" in text and "| a |" not in text
+    assert text.startswith("# Benchmarks\n\nhand-written text\n")
+
+
+def test_no_write_leaves_the_file_alone(tmp_path: Path) -> None:
+    path = tmp_path / "BENCHMARKS.md"
+    finish_section("s", "T", "cmd", "m", ["h"], ["| 1 |"], write=False, path=path)
+    assert not path.exists()
