@@ -9,18 +9,9 @@ from pathlib import Path
 
 import torch
 
+from plls_bench.devices import cpu_model
+
 REPO = Path(__file__).resolve().parent.parent
-
-
-def cpu_model() -> str:
-    """The CPU's model name from ``/proc/cpuinfo`` (machines differ between sessions), else the arch."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def machine() -> str:
