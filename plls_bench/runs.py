@@ -47,6 +47,12 @@ HASH_EXCLUDED_NESTED = ("env.backend_threads",)
 # must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
 # value instead of dropping the key keeps the hashes of existing runs, which stay done/resumable.
 HASH_PINNED_KEYS = {"device": "cpu"}
+# Overrides left out of the run dir's variant name although they change a result, or are no config
+# key: already in the path (experiment, seed), the profile (one run dir serves every profile; the
+# config hash tells them apart and supersedes) and Hydra's launcher. conf/config.yaml's
+# hydra.job.config.override_dirname.exclude_keys is these plus :func:`unhashed_keys`: Hydra reads
+# that list from yaml, so tests/test_runs.py checks the two agree.
+VARIANT_EXCLUDED_KEYS = ("experiment", "seed", "budget", "hydra/launcher")
 # Sub-outputs made from a finished run by a later command, each in ``<run dir>/<name>/``.
 RUN_OUTPUTS = ("filmstrip",)
 
@@ -152,6 +158,11 @@ def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLU
                 dotted in HASH_EXCLUDED_NESTED or node[leaf] == HASH_NEUTRAL_DEFAULTS[dotted]):
             del node[leaf]
     return data
+
+
+def unhashed_keys() -> tuple[str, ...]:
+    """Every key that changes no result, dotted: excluded, nested-excluded and pinned alike."""
+    return (*HASH_EXCLUDED_KEYS, *HASH_EXCLUDED_NESTED, *HASH_PINNED_KEYS)
 
 
 def config_hash(cfg: Any) -> str:

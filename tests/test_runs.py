@@ -5,9 +5,12 @@ import json
 from pathlib import Path
 
 import pytest
+import yaml
 
+from plls_bench.composition import CONF_DIR
 from plls_bench.runner import execute
-from plls_bench.runs import Run, atomic_write_json, iter_run_dirs, read_jsonl, variant_name
+from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, iter_run_dirs, read_jsonl,
+                             unhashed_keys, variant_name)
 from tests.conftest import compose_preset
 
 
@@ -107,3 +110,14 @@ def test_failed_run_records_the_error(runs_dir: Path, monkeypatch: pytest.Monkey
         execute(compose_preset("mountaincar_data", runs_dir), run_dir)
     status = json.loads((run_dir / "status.json").read_text())
     assert status["state"] == "failed" and "boom" in status["error"]
+
+
+def test_the_variant_name_leaves_out_exactly_the_keys_that_change_no_result() -> None:
+    """Hydra reads exclude_keys from yaml, so it cannot import runs.py: the two must agree."""
+    hydra_cfg = yaml.safe_load((CONF_DIR / "config.yaml").read_text())["hydra"]
+    excluded = hydra_cfg["job"]["config"]["override_dirname"]["exclude_keys"]
+    want = {*VARIANT_EXCLUDED_KEYS, *unhashed_keys()}
+    assert len(excluded) == len(set(excluded)) and set(excluded) == want, (
+        "conf/config.yaml hydra.job.config.override_dirname.exclude_keys must list "
+        f"{sorted(want)} (plls_bench/runs.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); got {sorted(excluded)}. "
+        "A key that changes no result goes into runs.py's HASH_* tables first, then into that list.")
