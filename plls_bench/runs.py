@@ -6,6 +6,7 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
     config.json           the typed, resolved config and its hash (what the collector reads)
     provenance.json       git sha + dirty flag, package versions, command, host, device used, starts
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
+    metrics/*.json        summaries, e.g. :data:`PARAMS_FILE` and :data:`ARCHITECTURE_FILE`
     checkpoints/          whatever the runner needs to resume
     status.json           written last and atomically: running -> done | failed (with the error)
     filmstrip/            a sub-output made after the run (:data:`RUN_OUTPUTS`, :class:`RunOutput`):
@@ -53,6 +54,10 @@ HASH_PINNED_KEYS = {"device": "cpu"}
 # hydra.job.config.override_dirname.exclude_keys is these plus :func:`unhashed_keys`: Hydra reads
 # that list from yaml, so tests/test_runs.py checks the two agree.
 VARIANT_EXCLUDED_KEYS = ("experiment", "seed", "budget", "hydra/launcher")
+# What a method's modules are (Table 3, Figs. 12 and 17), written by each runner that builds a
+# model and read by the collector: parameter counts, and the layers of each module.
+PARAMS_FILE = "metrics/params.json"
+ARCHITECTURE_FILE = "metrics/architecture.json"
 # Sub-outputs made from a finished run by a later command, each in ``<run dir>/<name>/``.
 RUN_OUTPUTS = ("filmstrip",)
 

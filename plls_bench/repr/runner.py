@@ -15,7 +15,7 @@ from plls_bench.config import Config
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.keys import NAMES
 from plls_bench.repr.store import Representations, ensure_representations
-from plls_bench.runs import Run, read_json
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, read_json
 
 log = logging.getLogger(__name__)
 
@@ -42,8 +42,8 @@ def run(cfg: Config, run: Run) -> None:
     run.write_bytes("metrics/repr_train.jsonl",
                     "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
     run.write_json("metrics/repr_test.json", model_test_metrics(reprs))
-    run.write_json("metrics/params.json", parameter_counts(modules, trainable=modules))
-    run.write_json("metrics/architecture.json", architecture_summary(modules, examples))
+    run.write_json(PARAMS_FILE, parameter_counts(modules, trainable=modules))
+    run.write_json(ARCHITECTURE_FILE, architecture_summary(modules, examples))
     for which, metrics in model_test_metrics(reprs).items():
         log.info("%s test MSE %.6g (mean predictor %.6g) from %s", NAMES[which], metrics["test_mse"],
                  metrics["mean_predictor_mse"], metrics["artifact"])
