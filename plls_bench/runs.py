@@ -91,12 +91,16 @@ def read_json(path: Path) -> Any | None:
         return None
 
 
+def jsonl_line(record: dict[str, Any]) -> str:
+    """The one format of a metrics line: sorted keys, numpy scalars as floats, newline-ended."""
+    return json.dumps(record, sort_keys=True, default=float) + "\n"
+
+
 def append_jsonl(path: Path, record: dict[str, Any]) -> None:
     """Append one line-complete JSON record (one write call, flushed and fsynced)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    line = json.dumps(record, sort_keys=True, default=float) + "\n"
     with open(path, "ab") as handle:
-        handle.write(line.encode())
+        handle.write(jsonl_line(record).encode())
         handle.flush()
         os.fsync(handle.fileno())
 
@@ -260,6 +264,11 @@ class Run:
         """Append ``record`` to ``metrics/<stream>.jsonl``."""
         append_jsonl(self.metrics_path(stream), record)
 
+    def write_metrics(self, stream: str, records: Iterable[dict[str, Any]]) -> None:
+        """Atomically replace ``metrics/<stream>.jsonl`` with ``records`` (a stream copied whole,
+        which a rerun must replace, not append to)."""
+        atomic_write_bytes(self.metrics_path(stream), "".join(map(jsonl_line, records)).encode())
+
     def read_metrics(self, stream: str) -> list[dict[str, Any]]:
         return read_jsonl(self.metrics_path(stream))
 
@@ -271,8 +280,7 @@ class Run:
             return 0
         records = read_jsonl(path)
         kept = [r for r in records if keep(r)]
-        text = "".join(json.dumps(r, sort_keys=True, default=float) + "\n" for r in kept)
-        atomic_write_bytes(path, text.encode())
+        self.write_metrics(stream, kept)
         return len(records) - len(kept)
 
     def write_json(self, relpath: str, obj: Any) -> Path:

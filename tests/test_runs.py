@@ -4,12 +4,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from plls_bench.composition import CONF_DIR
 from plls_bench.runner import execute
-from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, iter_run_dirs, read_jsonl,
+from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, iter_run_dirs, jsonl_line, read_jsonl,
                              unhashed_keys, variant_name)
 from tests.conftest import compose_preset
 
@@ -36,6 +37,16 @@ def test_truncate_drops_rows_after_the_checkpoint(tmp_path: Path) -> None:
         run.log("eval", {"step": step})
     assert run.truncate_metrics("eval", lambda r: r["step"] <= 2) == 2
     assert [r["step"] for r in run.read_metrics("eval")] == [0, 1, 2]
+
+
+def test_appended_rewritten_and_truncated_streams_share_one_line_format(tmp_path: Path) -> None:
+    run, row = Run(tmp_path), {"b": np.float32(0.5), "a": 1}
+    run.log("appended", row)
+    run.write_metrics("written", [row])
+    run.truncate_metrics("appended", lambda r: True)
+    line = jsonl_line(row)
+    assert line == '{"a": 1, "b": 0.5}\n'
+    assert run.metrics_path("appended").read_text() == run.metrics_path("written").read_text() == line
 
 
 def test_a_run_output_is_made_only_once_every_file_and_its_marker_are_written(tmp_path: Path,

@@ -6,7 +6,6 @@ that reuses an artifact built by another still gets complete metrics.
 """
 from __future__ import annotations
 
-import json
 import logging
 
 import torch
@@ -39,8 +38,7 @@ def run(cfg: Config, run: Run) -> None:
         modules[f"{name}.encoder"], examples[f"{name}.encoder"] = model.encoder, x.to(device)
         modules[f"{name}.decoder"] = model.decoder
         examples[f"{name}.decoder"] = torch.zeros(1, model.latent_dim, device=device)
-    run.write_bytes("metrics/repr_train.jsonl",
-                    "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
+    run.write_metrics("repr_train", rows)
     run.write_json("metrics/repr_test.json", model_test_metrics(reprs))
     run.write_json(PARAMS_FILE, parameter_counts(modules, trainable=modules))
     run.write_json(ARCHITECTURE_FILE, architecture_summary(modules, examples))
