@@ -1,8 +1,9 @@
 """What a DBC run needs to resume after a kill: agent, optimisers, RNGs, counters and the replay.
 
 A checkpoint is ``checkpoints/dbc.pt`` (agent, optimisers, RNG states, the
-:class:`~plls_bench.train.loop.Progress` and ``replay_written``; a readable copy of the progress
-in ``checkpoints/progress.json``) plus
+:class:`~plls_bench.train.loop.Progress` as every checkpoint saves it
+(:func:`~plls_bench.train.checkpoint.progress_record`) and ``replay_written``; a readable copy of
+the progress in ``checkpoints/progress.json``) plus
 ``checkpoints/replay/chunk_<start>_<end>.npz``: each checkpoint appends only the replay slots
 written since the previous one, so saving stays cheap as the buffer grows. Chunks are written
 (atomically) before ``dbc.pt``; on resume, chunks past the checkpoint's slot count (from a
@@ -32,6 +33,7 @@ from plls_bench.records.layout import runs_dir_of
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import Run, read_json
 from plls_bench.seeding import quiet_rng
+from plls_bench.train.checkpoint import progress_record, restored_progress
 from plls_bench.train.loop import Progress
 
 CHECKPOINT = "checkpoints/dbc.pt"
@@ -52,13 +54,6 @@ def _chunks(run: Run) -> list[tuple[int, int, Path]]:
     return sorted(found)
 
 
-def _saved(progress: Progress, replay_written: int) -> dict[str, Any]:
-    """The progress as ``dbc.pt`` and ``progress.json`` have always held it (iteration is the
-    agent step), with the replay slots covered by saved chunks."""
-    return {"agent_steps": progress.agent_steps, "env_steps": progress.env_steps, "episodes": progress.episodes,
-            "evaluations": progress.evaluations, "wall_s": progress.wall_s, "replay_written": replay_written}
-
-
 def save_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay, progress: Progress,
                     rng: np.random.Generator) -> None:
     """Append the replay slots written since the last chunk as a new chunk, then write ``dbc.pt``
@@ -68,7 +63,7 @@ def save_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay, progress: Pr
     start, end = max(saved_end, replay.oldest), replay.n_written
     if end > start:
         save_npz(run.path / REPLAY_DIR / f"chunk_{start:012d}_{end:012d}.npz", replay.export(start, end))
-    saved = _saved(progress, end)
+    saved = {**progress_record(progress), "replay_written": end}  # with the replay slots saved in chunks
     state = {"agent": agent.state_dict(), "progress": saved,
              "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()}
     buffer = io.BytesIO()
@@ -91,8 +86,7 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
         return None
     state: dict[str, Any] = torch.load(path, map_location=agent.device, weights_only=True)
     saved = state["progress"]
-    progress = Progress(iteration=saved["agent_steps"], agent_steps=saved["agent_steps"], wall_s=saved["wall_s"],
-                        env_steps=saved["env_steps"], evaluations=saved["evaluations"], episodes=saved["episodes"])
+    progress = restored_progress(saved)  # DBC's checkpoints have always saved env_steps
     agent.load_state_dict(state["agent"])
     rng.bit_generator.state = state["rng"]
     torch.set_rng_state(state["torch_rng"].cpu())  # map_location moved it to the agent's device

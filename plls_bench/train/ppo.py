@@ -178,14 +178,15 @@ def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tu
     found = checkpoint.latest(run.path)
     if found is None:
         return new_model(cfg, venv), Progress(), True
-    zip_path, saved, rng = found
+    zip_path, saved_progress, rng = found
+    saved = checkpoint.restored_progress(saved_progress, cfg.env.action_repeat)
     venv.seed(sub_seed(train_seed, saved.iteration))
     saved_stats = checkpoint.normalization(run.path)
     if saved_stats is not None:
         normalize.restore(venv, saved_stats)
     model = load_model(zip_path, resolve_device(cfg.device), venv)  # under quiet_rng: the checkpoint's RNG states follow
     checkpoint.set_rng_state(rng)
-    return model, replace(saved, env_steps=saved.agent_steps * cfg.env.action_repeat), False
+    return model, saved, False
 
 
 def _dump_to_sb3(model: PPO, record: dict[str, Any], at: Progress) -> None:
