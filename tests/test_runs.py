@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import yaml
 
-from plls_bench.composition import CONF_DIR
+from plls_bench.composition import CONF_DIR, recorded_config
 from plls_bench.runner import execute
-from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, iter_run_dirs, jsonl_line, read_jsonl,
-                             unhashed_keys, variant_name)
+from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, config_hash, iter_run_dirs, jsonl_line,
+                             read_jsonl, unhashed_keys, variant_name)
 from tests.conftest import compose_preset
 
 
@@ -132,3 +132,13 @@ def test_the_variant_name_leaves_out_exactly_the_keys_that_change_no_result() ->
         "conf/config.yaml hydra.job.config.override_dirname.exclude_keys must list "
         f"{sorted(want)} (plls_bench/runs.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); got {sorted(excluded)}. "
         "A key that changes no result goes into runs.py's HASH_* tables first, then into that list.")
+
+
+def test_a_recorded_config_reads_where_the_run_lives_now(tmp_path: Path) -> None:
+    """Both policy loaders (PPO's load_trained, DBC's load_trained_agent) read configs this way."""
+    cfg = compose_preset("mountaincar_ppo", tmp_path / "elsewhere")
+    moved = tmp_path / "records" / "mountaincar_ppo" / "default" / "seed=0"
+    Run(moved).prepare(cfg, config_hash(cfg))
+    assert recorded_config(moved).runs_dir == str(tmp_path / "records")
+    with pytest.raises(FileNotFoundError, match="config.json is missing: not a run directory"):
+        recorded_config(tmp_path / "empty")

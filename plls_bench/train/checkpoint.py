@@ -52,6 +52,11 @@ def restored_progress(saved: dict[str, Any], action_repeat: int | None = None) -
     return Progress(**values)
 
 
+def missing_checkpoint(run_dir: str | Path) -> FileNotFoundError:
+    """The error of a trained policy asked of a run dir without a committed checkpoint."""
+    return FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
+
+
 def rng_state() -> dict[str, Any]:
     """JSON-able states of python's, numpy's global and torch's CPU generators."""
     kind, keys, pos, has_gauss, gauss = np.random.get_state()

@@ -24,16 +24,15 @@ from gymnasium.spaces import Box
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.artifacts import load_npz, save_npz
-from plls_bench.composition import config_from_dict
+from plls_bench.composition import recorded_config
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import wrap_latent
-from plls_bench.records.layout import runs_dir_of
 from plls_bench.repr.store import Representations, load_representations
-from plls_bench.runs import Run, read_json
+from plls_bench.runs import Run
 from plls_bench.seeding import quiet_rng
-from plls_bench.train.checkpoint import progress_record, restored_progress
+from plls_bench.train.checkpoint import missing_checkpoint, progress_record, restored_progress
 from plls_bench.train.loop import Progress
 
 CHECKPOINT = "checkpoints/dbc.pt"
@@ -108,15 +107,11 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     Everything lands on ``device`` (``auto``: a GPU when present), whatever device the run trained
     on; the returned config says so (``cfg.device``). Never trains: a missing V_a artifact raises
     ``MissingArtifact``. The task's env is made (not reset or rendered) only to read its spaces."""
-    record = read_json(run_dir / "config.json")
-    if record is None:
-        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    cfg = replace(recorded_config(run_dir), device=device)  # the recorded device may be absent here
     path = run_dir / CHECKPOINT if (run_dir / CHECKPOINT).exists() else run_dir / POLICY
     if not path.exists():
-        raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
+        raise missing_checkpoint(run_dir)
     target = resolve_device(device)  # refuses an absent GPU before any env is built
-    cfg = replace(config_from_dict(record["config"]), device=device)  # the recorded one may be absent here
-    cfg = replace(cfg, runs_dir=runs_dir_of(run_dir, cfg.runs_dir))  # records load on any checkout
     assert cfg.algo.dbc is not None
     reprs = load_representations(cfg)
     venv = wrap_latent(make_vec_env(cfg.env, 1, 0), reprs)  # the spaces the agent saw in training
