@@ -14,6 +14,7 @@ from hydra import initialize_config_dir
 from omegaconf import OmegaConf
 
 from plls_bench.config import Config, ConfigError, FilmstripConfig, register_configs, to_config
+from plls_bench.config.runners import runner_of
 from plls_bench.records.layout import runs_dir_of
 from plls_bench.runs import read_json, variant_name
 
@@ -22,10 +23,12 @@ MAX_SWEEP_VALIDATION = 512  # a multirun larger than this is validated on its fi
 
 
 def register() -> None:
-    """Register the schema and the run-dir resolver (idempotent)."""
+    """Register the schema and the resolvers of conf/config.yaml: the run-dir variant and the
+    runner an algo implies (idempotent)."""
     register_configs()
-    if not OmegaConf.has_resolver("plls_variant"):
-        OmegaConf.register_new_resolver("plls_variant", variant_name)
+    for name, resolver in (("plls_variant", variant_name), ("plls_runner", runner_of)):
+        if not OmegaConf.has_resolver(name):
+            OmegaConf.register_new_resolver(name, resolver)
 
 
 def compose(overrides: list[str] | tuple[str, ...] = (), config_name: str = "config") -> Config:

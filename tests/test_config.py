@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError
@@ -96,6 +97,25 @@ def test_every_yaml_key_has_a_comment() -> None:
             if "#" not in text:
                 bare.append(f"{path.relative_to(CONF_DIR)}:{number}: {text}")
     assert not bare, "yaml values without a source comment:\n" + "\n".join(bare)
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_a_learners_runner_follows_from_its_algo_alone(experiment: str) -> None:
+    """A preset names its learner once (``override /algo``): conf/config.yaml's ``runner:`` follows
+    it. Only presets that learn no policy say what they run instead (collect, repr or study)."""
+    preset = yaml.safe_load((CONF_DIR / "experiment" / f"{experiment}.yaml").read_text())
+    cfg = compose([f"+experiment={experiment}"])
+    if cfg.algo.name == "none":
+        assert cfg.runner in ("collect", "repr", "study")
+    else:
+        assert "runner" not in preset, f"conf/experiment/{experiment}.yaml: drop runner, its algo implies it"
+        assert cfg.runner == cfg.algo.name
+
+
+def test_an_algo_alone_on_the_command_line_picks_its_runner() -> None:
+    assert compose(["algo=dbc_readme", "env=cheetah"]).runner == "dbc"
+    assert compose(["algo=ppo", "env=mountaincar"]).runner == "ppo"
+    assert compose(["env=mountaincar"]).runner == "collect"
 
 
 TABLE_1 = {"n_steps": 512, "learning_rate": 4e-4, "n_epochs": 10, "batch_size": 128, "n_envs": 32,
