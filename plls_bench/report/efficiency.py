@@ -61,7 +61,7 @@ def hyperparameters(runs: Runs, entry: Entry, opts: Options, *, paper: str) -> O
     budgets = ", ".join(f"{s.label}: {e.budget_text} ({plural(len(e.trials), 'run')})"
                         for s, e in zip(entry.sources, exps))
     notes = ["* differs from the paper. At smoke budget a per-algorithm file shrinks the vector env "
-             "(conf/budget/per_algo/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."]
+             "(conf/algo/per_budget/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."]
     notes = notes if differs else []
     baseline_note = [f"Paper's plain PPO differs: {r['hyperparameter']} = {r['paper_baseline']}"
                      for r in rows_in if r["paper_baseline"]]
