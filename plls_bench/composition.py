@@ -6,6 +6,7 @@ use it to build configs from the shipped yaml instead of by hand.
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 from pathlib import Path
 
 from hydra import compose as hydra_compose
@@ -13,17 +14,21 @@ from hydra import initialize_config_dir
 from omegaconf import OmegaConf
 
 from plls_bench.config import Config, ConfigError, FilmstripConfig, register_configs, to_config
-from plls_bench.runs import variant_name
+from plls_bench.config.runners import runner_of
+from plls_bench.records.layout import runs_dir_of
+from plls_bench.runs import read_json, variant_name
 
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 MAX_SWEEP_VALIDATION = 512  # a multirun larger than this is validated on its first jobs only
 
 
 def register() -> None:
-    """Register the schema and the run-dir resolver (idempotent)."""
+    """Register the schema and the resolvers of conf/config.yaml: the run-dir variant and the
+    runner an algo implies (idempotent)."""
     register_configs()
-    if not OmegaConf.has_resolver("plls_variant"):
-        OmegaConf.register_new_resolver("plls_variant", variant_name)
+    for name, resolver in (("plls_variant", variant_name), ("plls_runner", runner_of)):
+        if not OmegaConf.has_resolver(name):
+            OmegaConf.register_new_resolver(name, resolver)
 
 
 def compose(overrides: list[str] | tuple[str, ...] = (), config_name: str = "config") -> Config:
@@ -78,3 +83,14 @@ def config_from_dict(data: dict) -> Config:
     """The typed config recorded in a run's ``config.json`` (validated again)."""
     register()
     return to_config(OmegaConf.merge(OmegaConf.structured(Config), data))
+
+
+def recorded_config(run_dir: str | Path) -> Config:
+    """The typed config of a run dir or record, its ``runs_dir`` moved to where the run lives now
+    (:func:`~plls_bench.records.layout.runs_dir_of`), so a record made elsewhere finds its V_s /
+    V_a on any checkout. FileNotFoundError when there is no readable ``config.json``."""
+    record = read_json(Path(run_dir) / "config.json")
+    if record is None:
+        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    cfg = config_from_dict(record["config"])
+    return replace(cfg, runs_dir=runs_dir_of(run_dir, cfg.runs_dir))

@@ -6,6 +6,7 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
     config.json           the typed, resolved config and its hash (what the collector reads)
     provenance.json       git sha + dirty flag, package versions, command, host, device used, starts
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
+    metrics/*.json        summaries, e.g. :data:`PARAMS_FILE` and :data:`ARCHITECTURE_FILE`
     checkpoints/          whatever the runner needs to resume
     status.json           written last and atomically: running -> done | failed (with the error)
     filmstrip/            a sub-output made after the run (:data:`RUN_OUTPUTS`, :class:`RunOutput`):
@@ -47,6 +48,16 @@ HASH_EXCLUDED_NESTED = ("env.backend_threads",)
 # must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
 # value instead of dropping the key keeps the hashes of existing runs, which stay done/resumable.
 HASH_PINNED_KEYS = {"device": "cpu"}
+# Overrides left out of the run dir's variant name although they change a result, or are no config
+# key: already in the path (experiment, seed), the profile (one run dir serves every profile; the
+# config hash tells them apart and supersedes) and Hydra's launcher. conf/config.yaml's
+# hydra.job.config.override_dirname.exclude_keys is these plus :func:`unhashed_keys`: Hydra reads
+# that list from yaml, so tests/test_runs.py checks the two agree.
+VARIANT_EXCLUDED_KEYS = ("experiment", "seed", "budget", "hydra/launcher")
+# What a method's modules are (Table 3, Figs. 12 and 17), written by each runner that builds a
+# model and read by the collector: parameter counts, and the layers of each module.
+PARAMS_FILE = "metrics/params.json"
+ARCHITECTURE_FILE = "metrics/architecture.json"
 # Sub-outputs made from a finished run by a later command, each in ``<run dir>/<name>/``.
 RUN_OUTPUTS = ("filmstrip",)
 
@@ -80,12 +91,16 @@ def read_json(path: Path) -> Any | None:
         return None
 
 
+def jsonl_line(record: dict[str, Any]) -> str:
+    """The one format of a metrics line: sorted keys, numpy scalars as floats, newline-ended."""
+    return json.dumps(record, sort_keys=True, default=float) + "\n"
+
+
 def append_jsonl(path: Path, record: dict[str, Any]) -> None:
     """Append one line-complete JSON record (one write call, flushed and fsynced)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    line = json.dumps(record, sort_keys=True, default=float) + "\n"
     with open(path, "ab") as handle:
-        handle.write(line.encode())
+        handle.write(jsonl_line(record).encode())
         handle.flush()
         os.fsync(handle.fileno())
 
@@ -152,6 +167,11 @@ def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLU
                 dotted in HASH_EXCLUDED_NESTED or node[leaf] == HASH_NEUTRAL_DEFAULTS[dotted]):
             del node[leaf]
     return data
+
+
+def unhashed_keys() -> tuple[str, ...]:
+    """Every key that changes no result, dotted: excluded, nested-excluded and pinned alike."""
+    return (*HASH_EXCLUDED_KEYS, *HASH_EXCLUDED_NESTED, *HASH_PINNED_KEYS)
 
 
 def config_hash(cfg: Any) -> str:
@@ -244,6 +264,11 @@ class Run:
         """Append ``record`` to ``metrics/<stream>.jsonl``."""
         append_jsonl(self.metrics_path(stream), record)
 
+    def write_metrics(self, stream: str, records: Iterable[dict[str, Any]]) -> None:
+        """Atomically replace ``metrics/<stream>.jsonl`` with ``records`` (a stream copied whole,
+        which a rerun must replace, not append to)."""
+        atomic_write_bytes(self.metrics_path(stream), "".join(map(jsonl_line, records)).encode())
+
     def read_metrics(self, stream: str) -> list[dict[str, Any]]:
         return read_jsonl(self.metrics_path(stream))
 
@@ -255,8 +280,7 @@ class Run:
             return 0
         records = read_jsonl(path)
         kept = [r for r in records if keep(r)]
-        text = "".join(json.dumps(r, sort_keys=True, default=float) + "\n" for r in kept)
-        atomic_write_bytes(path, text.encode())
+        self.write_metrics(stream, kept)
         return len(records) - len(kept)
 
     def write_json(self, relpath: str, obj: Any) -> Path:

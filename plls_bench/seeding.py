@@ -37,7 +37,7 @@ def derive_seeds(seed: int, data_seed: int, per_trial_data: bool = False) -> See
 
 def episode_seeds(seed: int, n: int) -> list[int]:
     """``n`` independent seeds for episodes 0..n-1 of a stream seeded by ``seed``."""
-    return [int(s.generate_state(1, dtype=np.uint32)[0]) for s in np.random.SeedSequence(seed).spawn(n)]
+    return [sub_seed(seed, i) for i in range(n)]  # = SeedSequence(seed).spawn(n), child i's first word
 
 
 def seed_everything(seed: int) -> None:
@@ -66,8 +66,18 @@ def quiet_rng(device: str | torch.device = "cpu") -> Iterator[None]:
         yield
 
 
+def derived_seed(entropy: int | tuple[int, ...], spawn_key: tuple[int, ...] = ()) -> int:
+    """The one derivation of a seed: the first uint32 word of ``SeedSequence(entropy, spawn_key)``.
+
+    Two forms are in use, and both stay, since recorded runs and artifact keys hold their numbers:
+    a sub-stream of one seed (``spawn_key``: :func:`sub_seed`) and a seed mixed from a tuple of
+    numbers given as ``entropy`` (DBC's env seeds per resume and per evaluation, V_s / V_a training
+    seeds). tests/test_seeding.py pins values of each."""
+    seq = np.random.SeedSequence(entropy=entropy, spawn_key=spawn_key)
+    return int(seq.generate_state(1, dtype=np.uint32)[0])
+
+
 def sub_seed(seed: int, *key: int) -> int:
     """A seed for the sub-stream ``key`` of a stream seeded by ``seed`` (e.g. the training envs'
     resets after a resume at iteration k: ``sub_seed(train, k)``)."""
-    seq = np.random.SeedSequence(entropy=seed, spawn_key=tuple(key))
-    return int(seq.generate_state(1, dtype=np.uint32)[0])
+    return derived_seed(seed, tuple(key))

@@ -17,7 +17,7 @@ import numpy as np
 from plls_bench.composition import compose
 from plls_bench.config import Config
 from plls_bench.report.registry import ENTRIES
-from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json, run_dir_path
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, STATUS_DONE, Run, config_hash, read_json, run_dir_path
 from plls_bench.sweeps import load_sweep, sweep_names
 
 # The group choices of each registry preset; shipped presets where they exist (PPO: issue 4, the
@@ -96,7 +96,7 @@ def write_repr(run: Run, model: str, epochs: int, test_mse: float, artifact: str
 
 
 def write_params(run: Run, total: int, trainable: int) -> None:
-    run.write_json("metrics/params.json", {"total": total, "trainable": trainable, "modules": {
+    run.write_json(PARAMS_FILE, {"total": total, "trainable": trainable, "modules": {
         "policy": {"total": trainable, "trainable": trainable},
         "frozen": {"total": total - trainable, "trainable": 0}}})
 
@@ -106,7 +106,7 @@ def write_architecture(run: Run, trainable: bool) -> None:
         return {"name": name, "type": "Conv2d", "output_shape": shape, "params": params, "trainable": trainable}
 
     relu = {"name": "relu", "type": "ReLU", "output_shape": [32, 47, 47], "params": 0, "trainable": trainable}
-    run.write_json("metrics/architecture.json", {
+    run.write_json(ARCHITECTURE_FILE, {
         "encoder": [conv("conv1", [32, 47, 47], 1568), relu, conv("conv2", [64, 22, 22], 32832)],
         "policy": [{"name": "fc", "type": "Linear", "output_shape": [32], "params": 1056, "trainable": True},
                    {"name": "tanh", "type": "Tanh", "output_shape": [32], "params": 0, "trainable": True}]})

@@ -1,12 +1,14 @@
 """Every shipped yaml composes and validates; bad input fails before any run dir or compute."""
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
 
 import pytest
+import yaml
 
 from plls_bench.composition import CONF_DIR, compose
-from plls_bench.config import BUDGET_NAMES, ENV_NAMES, ConfigError
+from plls_bench.config import BUDGET_NAMES, ENV_NAMES, BudgetConfig, ConfigError
 from plls_bench.sweeps import load_sweep
 from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path
 
@@ -59,7 +61,7 @@ def overrides_for(yaml_path: Path) -> list[str]:
     if group == "env/backend":  # <env>_<profile>: the simulator engine a profile uses for a task
         env, profile = name.rsplit("_", 1)
         return [f"env={env}", f"budget={profile}"]
-    if group in ("budget/per_algo", "budget/per_recipe"):  # <algo>_<env>_<profile>
+    if group in ("algo/per_budget", "budget/per_recipe"):  # <algo>_<env>_<profile>
         algo, env, profile = name.rsplit("_", 2)  # the algo choice may hold "_" (dbc_readme)
         runner = STATE_ALGOS.get(algo, [f"runner={algo.split('_')[0]}"])
         return [f"algo={algo}", *runner, f"env={env}", f"budget={profile}"]
@@ -96,6 +98,41 @@ def test_every_yaml_key_has_a_comment() -> None:
             if "#" not in text:
                 bare.append(f"{path.relative_to(CONF_DIR)}:{number}: {text}")
     assert not bare, "yaml values without a source comment:\n" + "\n".join(bare)
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_a_learners_runner_follows_from_its_algo_alone(experiment: str) -> None:
+    """A preset names its learner once (``override /algo``): conf/config.yaml's ``runner:`` follows
+    it. Only presets that learn no policy say what they run instead (collect, repr or study)."""
+    preset = yaml.safe_load((CONF_DIR / "experiment" / f"{experiment}.yaml").read_text())
+    cfg = compose([f"+experiment={experiment}"])
+    if cfg.algo.name == "none":
+        assert cfg.runner in ("collect", "repr", "study")
+    else:
+        assert "runner" not in preset, f"conf/experiment/{experiment}.yaml: drop runner, its algo implies it"
+        assert cfg.runner == cfg.algo.name
+
+
+def test_an_algo_alone_on_the_command_line_picks_its_runner() -> None:
+    assert compose(["algo=dbc_readme", "env=cheetah"]).runner == "dbc"
+    assert compose(["algo=ppo", "env=mountaincar"]).runner == "ppo"
+    assert compose(["env=mountaincar"]).runner == "collect"
+
+
+def test_no_budget_file_sets_an_algorithm_hyperparameter() -> None:
+    """Issue 25: a budget sizes a run; an algorithm's settings at a profile live in conf/algo/per_budget/.
+    Every file under conf/budget/ holds only budget keys, and every budget layer lands in ``budget``."""
+    allowed = {f.name for f in fields(BudgetConfig)} | {"defaults"}
+    for path in sorted((CONF_DIR / "budget").rglob("*.yaml")):
+        text = path.read_text()
+        keys = set(yaml.safe_load(text) or {})
+        assert "@package" not in text and keys <= allowed, (
+            f"conf/{path.relative_to(CONF_DIR)} sets {sorted(keys - allowed) or 'a package'}: an algorithm "
+            "hyper-parameter belongs in conf/algo/ (per profile: conf/algo/per_budget/)")
+    entries = yaml.safe_load((CONF_DIR / "config.yaml").read_text())["defaults"]
+    layers = [e if isinstance(e, str) else next(iter(e)) for e in entries]
+    budget_layers = [e for e in layers if e.removeprefix("optional ").startswith("budget")]
+    assert budget_layers and all(e == "budget" or e.endswith("@budget") for e in budget_layers), budget_layers
 
 
 TABLE_1 = {"n_steps": 512, "learning_rate": 4e-4, "n_epochs": 10, "batch_size": 128, "n_envs": 32,

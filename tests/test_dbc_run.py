@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from plls_bench.artifacts import load_npz
-from plls_bench.runs import read_json, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, read_json, read_jsonl
 from tests.conftest import REPO_ROOT, compose_preset
 
 # smoke budget: 400 env steps (100 agent steps at action repeat 4), evaluations every 200
@@ -50,10 +50,10 @@ def check_contract(run_dir: Path) -> list[dict]:
     steps = [r["env_steps"] for r in train]
     assert steps == sorted(set(steps)) and steps[-1] == 400
     assert TRAIN_KEYS <= set(train[-1]), TRAIN_KEYS - set(train[-1])
-    params = read_json(run_dir / "metrics" / "params.json")
+    params = read_json(run_dir / PARAMS_FILE)
     assert params["total"] == sum(m["total"] for m in params["modules"].values())
     assert params["modules"]["critic_target"]["trainable"] == 0 and params["trainable"] < params["total"]
-    convs = [layer for layer in read_json(run_dir / "metrics" / "architecture.json")["encoder"]
+    convs = [layer for layer in read_json(run_dir / ARCHITECTURE_FILE)["encoder"]
              if layer["type"] == "Conv2d"]
     assert [c["output_shape"] for c in convs] == [[1, 32, 41, 41], [1, 32, 39, 39], [1, 32, 37, 37], [1, 32, 35, 35]]
     return evals
@@ -97,9 +97,9 @@ def test_plls_dbc_acts_through_the_frozen_action_decoder(runs_dir: Path) -> None
     assert done.returncode == 0, done.stderr[-3000:]
     run_dir = runs_dir / "cheetah_plls_dbc" / "default" / "seed=0"
     check_contract(run_dir)
-    params = read_json(run_dir / "metrics" / "params.json")
+    params = read_json(run_dir / PARAMS_FILE)
     assert params["modules"]["V_a.decoder"]["total"] > 0 and params["modules"]["V_a.decoder"]["trainable"] == 0
-    architecture = read_json(run_dir / "metrics" / "architecture.json")
+    architecture = read_json(run_dir / ARCHITECTURE_FILE)
     assert architecture["actor"][-1]["output_shape"] == [1, 24], "mean and log-std of e in R^12"
     assert architecture["V_a.decoder"][-1]["output_shape"] == [1, 6], "decoded to cheetah's 6-D action"
     chunks = sorted((run_dir / "checkpoints" / "replay").glob("chunk_*.npz"))

@@ -89,3 +89,22 @@ def test_skeleton_order_cadence_and_resume(runs_dir: Path) -> None:
     assert [r["env_steps"] for r in evals] == [0, 16, 32, 40] and evals[-1]["agent_steps"] == 10
     assert all(r["wall_s"] >= 0 for r in trains) and set(trains[0]) == {"iteration", "agent_steps", "env_steps",
                                                                         "wall_s", "loss/x"}
+
+
+def test_every_checkpoint_saves_and_restores_the_whole_progress() -> None:
+    """One record for PPO's latest.json and DBC's dbc.pt (plls_bench.train.checkpoint)."""
+    from plls_bench.train.checkpoint import progress_record, restored_progress
+
+    at = Progress(iteration=7, agent_steps=70, wall_s=1.5, env_steps=280, evaluations=3, episodes=2)
+    assert restored_progress(progress_record(at)) == at
+
+
+def test_checkpoints_written_before_the_shared_record_restore_as_they_did() -> None:
+    """PPO's latest.json held (iteration, agent_steps, wall_s); DBC's dbc.pt no iteration."""
+    from plls_bench.train.checkpoint import restored_progress
+
+    ppo = restored_progress({"iteration": 4, "agent_steps": 2048, "wall_s": 9.0}, action_repeat=1)
+    assert ppo == Progress(iteration=4, agent_steps=2048, wall_s=9.0, env_steps=2048)
+    dbc = {"agent_steps": 100, "env_steps": 400, "episodes": 2, "evaluations": 3, "wall_s": 5.0, "replay_written": 102}
+    assert restored_progress(dbc) == Progress(iteration=100, agent_steps=100, wall_s=5.0, env_steps=400,
+                                              evaluations=3, episodes=2)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from plls_bench.runner import execute
-from plls_bench.runs import Run, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, read_jsonl
 from plls_bench.train.agent import build_vec_env, load_trained
 from plls_bench.train.ppo import Plan
 from tests.conftest import compose_preset, run_cli, start_cli
@@ -39,9 +39,9 @@ def check_run_contract(run_dir: Path, plan: Plan, eval_episodes: int) -> None:
         assert TRAIN_KEYS <= set(row), TRAIN_KEYS - set(row)
     wall = [r["wall_s"] for r in evals]
     assert wall == sorted(wall)
-    params = json.loads((run_dir / "metrics" / "params.json").read_text())
+    params = json.loads((run_dir / PARAMS_FILE).read_text())
     assert params["modules"]["policy"]["trainable"] == params["trainable"] > 0
-    assert (run_dir / "metrics" / "architecture.json").is_file()
+    assert (run_dir / ARCHITECTURE_FILE).is_file()
     csv_rows = [row for path in sorted(run_dir.glob("sb3/*/progress.csv")) for row in csv.DictReader(open(path))]
     assert {int(float(r["time/iteration"])) for r in csv_rows} == set(range(1, plan.iterations + 1))
     assert list(run_dir.glob("sb3/*/events.out.tfevents.*")), "TensorBoard output"
@@ -61,7 +61,7 @@ def test_preset_runs_end_to_end_at_smoke_budget(preset: str, shared_runs: Path) 
     run_dir = shared_runs / preset / "default" / "seed=0"
     assert execute(cfg, run_dir) == "done"
     check_run_contract(run_dir, Plan.of(cfg), cfg.budget.eval_episodes)
-    params = json.loads((run_dir / "metrics" / "params.json").read_text())
+    params = json.loads((run_dir / PARAMS_FILE).read_text())
     frozen = {"V_s.encoder"} if cfg.repr.state.kind == "vae" else set()
     frozen |= {"V_a.decoder"} if cfg.repr.action.kind == "vae" else set()
     assert set(params["modules"]) == {"policy", *frozen}, "total counts every module run, frozen ones too"
@@ -98,7 +98,7 @@ def test_hyper_parameters_are_overridable_from_the_command_line(shared_runs: Pat
     trains = Run(run_dirs[0]).read_metrics("train")
     assert trains[0]["train/learning_rate"] == pytest.approx(1e-3)
     assert [r["train/n_updates"] for r in trains] == [2, 4], "n_epochs=2 per iteration reached SB3"
-    params = json.loads((run_dirs[0] / "metrics" / "params.json").read_text())
+    params = json.loads((run_dirs[0] / PARAMS_FILE).read_text())
     e = 8  # the policy now emits e in R^8 through a V_a trained with latent_dim=8
     assert params["modules"]["policy"]["trainable"] == (2 * 16 + 16) + (16 * e + e) + e + (16 + 1)
 

@@ -12,6 +12,7 @@ import pytest
 from plls_bench.records import export, export_records, main as records_main, record_files, records_dir_for
 from plls_bench.report.collect import render_all
 from plls_bench.report.load import Runs
+from plls_bench.runs import PARAMS_FILE
 from tests.synthetic_runs import build_all, fill, finish, make_run
 
 TABLES = ("claims", "stats", "table3")
@@ -37,7 +38,7 @@ def test_records_hold_the_collector_files_and_the_final_checkpoint_only(quick_ru
     (run_dir / "sb3").mkdir(exist_ok=True)
     (run_dir / "sb3" / "progress.csv").write_text("x\n")
     names = {str(p) for p in record_files(run_dir)}
-    assert {"config.json", "status.json", "metrics/eval.jsonl", "metrics/params.json"} <= names
+    assert {"config.json", "status.json", "metrics/eval.jsonl", PARAMS_FILE} <= names
     assert not any(n.startswith(("checkpoints", "sb3", ".hydra")) for n in names)
 
     out = tmp_path / "records"

@@ -15,7 +15,7 @@ from plls_bench.repr.store import (CheckpointError, CheckpointMismatch, ensure_a
                                    load_weights)
 from plls_bench.repr.train import new_model
 from plls_bench.runner import execute
-from plls_bench.runs import atomic_write_json, read_json, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, atomic_write_json, read_json, read_jsonl
 from tests.conftest import compose_preset, in_two_processes, run_cli
 
 EPOCH_KEYS = {"model", "epoch", "train_loss", "train_recon_mse", "train_kl", "val_loss", "val_recon_mse", "val_kl"}
@@ -45,9 +45,9 @@ def check_repr_run(run_dir: Path, models: dict[str, int]) -> dict:
     test = read_json(run_dir / "metrics" / "repr_test.json")
     assert set(test) == set(models)
     assert all({"test_mse", "n_test", "artifact"} <= set(t) and t["n_test"] > 0 for t in test.values())
-    params = read_json(run_dir / "metrics" / "params.json")
+    params = read_json(run_dir / PARAMS_FILE)
     assert params["total"] == sum(m["total"] for m in params["modules"].values()) > 0
-    architecture = read_json(run_dir / "metrics" / "architecture.json")
+    architecture = read_json(run_dir / ARCHITECTURE_FILE)
     assert set(architecture) == set(params["modules"])
     return test
 
@@ -78,7 +78,7 @@ def test_carracing_presets_train_vs_and_va_on_one_dataset(runs_dir: Path) -> Non
     assert frames["originals"].dtype == frames["reconstructions"].dtype == np.uint8
     assert frames["originals"].shape == frames["reconstructions"].shape == (len(frames["labels"]), 3, 96, 96)
     assert set(frames["labels"]) <= {"road", "grass"} and "road" in set(frames["labels"])
-    arch = read_json(vs_dir / "metrics" / "architecture.json")
+    arch = read_json(vs_dir / ARCHITECTURE_FILE)
     assert arch["V_s.decoder"][-1]["output_shape"] == [1, 3, 96, 96]
 
 

@@ -4,10 +4,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
+import yaml
 
+from plls_bench.composition import CONF_DIR, recorded_config
 from plls_bench.runner import execute
-from plls_bench.runs import Run, atomic_write_json, iter_run_dirs, read_jsonl, variant_name
+from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, config_hash, iter_run_dirs, jsonl_line,
+                             read_jsonl, unhashed_keys, variant_name)
 from tests.conftest import compose_preset
 
 
@@ -33,6 +37,16 @@ def test_truncate_drops_rows_after_the_checkpoint(tmp_path: Path) -> None:
         run.log("eval", {"step": step})
     assert run.truncate_metrics("eval", lambda r: r["step"] <= 2) == 2
     assert [r["step"] for r in run.read_metrics("eval")] == [0, 1, 2]
+
+
+def test_appended_rewritten_and_truncated_streams_share_one_line_format(tmp_path: Path) -> None:
+    run, row = Run(tmp_path), {"b": np.float32(0.5), "a": 1}
+    run.log("appended", row)
+    run.write_metrics("written", [row])
+    run.truncate_metrics("appended", lambda r: True)
+    line = jsonl_line(row)
+    assert line == '{"a": 1, "b": 0.5}\n'
+    assert run.metrics_path("appended").read_text() == run.metrics_path("written").read_text() == line
 
 
 def test_a_run_output_is_made_only_once_every_file_and_its_marker_are_written(tmp_path: Path,
@@ -107,3 +121,24 @@ def test_failed_run_records_the_error(runs_dir: Path, monkeypatch: pytest.Monkey
         execute(compose_preset("mountaincar_data", runs_dir), run_dir)
     status = json.loads((run_dir / "status.json").read_text())
     assert status["state"] == "failed" and "boom" in status["error"]
+
+
+def test_the_variant_name_leaves_out_exactly_the_keys_that_change_no_result() -> None:
+    """Hydra reads exclude_keys from yaml, so it cannot import runs.py: the two must agree."""
+    hydra_cfg = yaml.safe_load((CONF_DIR / "config.yaml").read_text())["hydra"]
+    excluded = hydra_cfg["job"]["config"]["override_dirname"]["exclude_keys"]
+    want = {*VARIANT_EXCLUDED_KEYS, *unhashed_keys()}
+    assert len(excluded) == len(set(excluded)) and set(excluded) == want, (
+        "conf/config.yaml hydra.job.config.override_dirname.exclude_keys must list "
+        f"{sorted(want)} (plls_bench/runs.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); got {sorted(excluded)}. "
+        "A key that changes no result goes into runs.py's HASH_* tables first, then into that list.")
+
+
+def test_a_recorded_config_reads_where_the_run_lives_now(tmp_path: Path) -> None:
+    """Both policy loaders (PPO's load_trained, DBC's load_trained_agent) read configs this way."""
+    cfg = compose_preset("mountaincar_ppo", tmp_path / "elsewhere")
+    moved = tmp_path / "records" / "mountaincar_ppo" / "default" / "seed=0"
+    Run(moved).prepare(cfg, config_hash(cfg))
+    assert recorded_config(moved).runs_dir == str(tmp_path / "records")
+    with pytest.raises(FileNotFoundError, match="config.json is missing: not a run directory"):
+        recorded_config(tmp_path / "empty")

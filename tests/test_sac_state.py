@@ -12,7 +12,7 @@ import torch
 
 from baselines.dbc import Batch, DBCAgent
 from plls_bench.config import ConfigError
-from plls_bench.runs import config_hash, read_json, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, config_hash, read_json, read_jsonl
 from tests.conftest import REPO_ROOT, compose_preset
 
 STATE_DIM = 17  # cheetah-run: position (8) + velocity (9)
@@ -109,9 +109,9 @@ def test_cheetah_sac_state_end_to_end_at_smoke(runs_dir: Path) -> None:
     assert all(r["agent_steps"] == r["env_steps"] // 4 and r["episode_lengths"] == [50] for r in evals)
     train = read_jsonl(run_dir / "metrics" / "train.jsonl")
     assert "loss/critic" in train[-1] and not REPRESENTATION_LOSSES & set(train[-1])
-    params = read_json(run_dir / "metrics" / "params.json")
+    params = read_json(run_dir / PARAMS_FILE)
     assert set(params["modules"]) == {"actor", "critic", "critic_target"}
-    architecture = read_json(run_dir / "metrics" / "architecture.json")
+    architecture = read_json(run_dir / ARCHITECTURE_FILE)
     first = architecture["actor"][0]
     assert (first["type"], first["output_shape"]) == ("Identity", [1, STATE_DIM]), "the 17-D state, no encoder"
     state = torch.load(run_dir / "checkpoints" / "dbc.pt", weights_only=True)

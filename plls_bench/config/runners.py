@@ -14,6 +14,13 @@ if TYPE_CHECKING:  # a type only: importing the root schema here would be circul
     from plls_bench.config import Config
 
 
+def runner_of(algo_name: str, otherwise: str) -> str:
+    """The runner a config runs unless it names one (``runner:`` in conf/config.yaml): a policy
+    learner's runner is named after its algorithm (:func:`_check_algo`), so ``override /algo``
+    alone picks it; a config without one (``algo.name`` none) runs ``otherwise``."""
+    return otherwise if algo_name == "none" else algo_name
+
+
 def validate_collect(cfg: Config) -> None:
     """``collect`` stores random-policy data: it learns no policy."""
     _check_no_algo(cfg)

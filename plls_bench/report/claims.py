@@ -31,6 +31,7 @@ from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
 from plls_bench.report.sweep_claim import sweep_best
 from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, Estimate,
                                         rule_text, verdict)
+from plls_bench.runs import PARAMS_FILE
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 NAN2 = (math.nan, math.nan)
@@ -95,7 +96,7 @@ def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
     """Deterministic (the architecture fixes it): one trial suffices."""
     params = parameter_counts(runs, runs.experiment(claim["experiment"]))
     if params is None:
-        raise NotJudged(f"no metrics/params.json in {claim['experiment']}")
+        raise NotJudged(f"no {PARAMS_FILE} in {claim['experiment']}")
     value = float(params[claim["param"]])
     return Estimate(value, NAN2, fmt(value), _budget(runs, claim["experiment"]))
 

@@ -13,6 +13,7 @@ from plls_bench.report.load import Experiment, Runs
 from plls_bench.report.returns import Convergence, convergence, load_curves
 from plls_bench.report.stats import CONVERGENCE_TOLERANCE, CONVERGENCE_WINDOW
 from plls_bench.report.tables import NA, Table, fmt, plural, read_paper
+from plls_bench.runs import PARAMS_FILE
 
 CONVERGENCE_RULE = (
     f"Convergence: the mean return over trials at each evaluation, smoothed by a trailing mean over "
@@ -60,7 +61,7 @@ def hyperparameters(runs: Runs, entry: Entry, opts: Options, *, paper: str) -> O
     budgets = ", ".join(f"{s.label}: {e.budget_text} ({plural(len(e.trials), 'run')})"
                         for s, e in zip(entry.sources, exps))
     notes = ["* differs from the paper. At smoke budget a per-algorithm file shrinks the vector env "
-             "(conf/budget/per_algo/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."]
+             "(conf/algo/per_budget/); plain PPO's learning rate on MountainCar is 3e-4 (Sec. 5.1)."]
     notes = notes if differs else []
     baseline_note = [f"Paper's plain PPO differs: {r['hyperparameter']} = {r['paper_baseline']}"
                      for r in rows_in if r["paper_baseline"]]
@@ -78,18 +79,18 @@ def parameter_counts(runs: Runs, exp: Experiment) -> dict | None:
     """``metrics/params.json`` of the lowest seed that has it; a trial with other counts is a gap."""
     found = None
     for trial in exp.trials:
-        if not (trial.path / "metrics" / "params.json").is_file():
+        if not (trial.path / PARAMS_FILE).is_file():
             continue
-        params = runs.json(exp, trial, "metrics/params.json")
+        params = runs.json(exp, trial, PARAMS_FILE)
         if params is None or not all(isinstance(params.get(k), int) for k in ("total", "trainable")):
-            runs.gap(exp, trial, "metrics/params.json lacks integer total/trainable")
+            runs.gap(exp, trial, f"{PARAMS_FILE} lacks integer total/trainable")
         elif found is None:
             found = params
         elif (params["total"], params["trainable"]) != (found["total"], found["trainable"]):
-            runs.gap(exp, trial, f"metrics/params.json counts {params['total']}/{params['trainable']} differ "
+            runs.gap(exp, trial, f"{PARAMS_FILE} counts {params['total']}/{params['trainable']} differ "
                                  f"from the first trial's {found['total']}/{found['trainable']}")
     if found is None and exp.trials:
-        runs.gap(exp, None, "no trial has metrics/params.json")
+        runs.gap(exp, None, f"no trial has {PARAMS_FILE}")
     return found
 
 
@@ -142,7 +143,7 @@ def _efficiency_row(runs: Runs, source: Source, ref: dict[str, str]) -> tuple[li
 
 TABLE3_CAPTION = (
     "Total parameters: every module the method needs at run time (frozen V_s and V_a included); trainable: "
-    "what PPO updates (metrics/params.json). The paper's CarRacing 'iteration' is read as one step of the "
+    f"what PPO updates ({PARAMS_FILE}). The paper's CarRacing 'iteration' is read as one step of the "
     "vector env, i.e. environment steps per parallel env (so its 120,000 iterations are the paper budget's "
     "1,920,000 env steps over 16 envs); Sampled_Frequency = those iterations to convergence / parallel envs, "
     "as the paper's 60,000 / 16 = 3,750. ")

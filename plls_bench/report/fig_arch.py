@@ -12,6 +12,7 @@ from matplotlib.patches import FancyBboxPatch
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import empty_output, new_figure, suptitle
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 
 TRAINABLE, FROZEN = "#fdb863", "#d9d9d9"
 LAYER_KEYS = ("name", "type", "output_shape", "params", "trainable")
@@ -23,20 +24,20 @@ def _layers(runs: Runs, entry: Entry) -> tuple[pd.DataFrame, dict[str, str]]:
     frames, totals = [], {}
     for source in entry.sources:
         exp = runs.experiment(source.experiment)
-        trial = runs.first_with(exp, "metrics/architecture.json")
-        arch = runs.json(exp, trial, "metrics/architecture.json") if trial else None
+        trial = runs.first_with(exp, ARCHITECTURE_FILE)
+        arch = runs.json(exp, trial, ARCHITECTURE_FILE) if trial else None
         if trial is None or arch is None:
             continue
         for module, layers in arch.items():
             ok = isinstance(layers, list) and all(isinstance(x, dict) and set(LAYER_KEYS) <= set(x)
                                                   for x in layers)
             if not ok:
-                runs.gap(exp, trial, f"metrics/architecture.json: module {module!r} is not a list of layers "
+                runs.gap(exp, trial, f"{ARCHITECTURE_FILE}: module {module!r} is not a list of layers "
                                      f"with {', '.join(LAYER_KEYS)}")
                 continue
             frames.append(pd.DataFrame([{"source": source.label, "module": module, "index": i,
                                          **{k: layer[k] for k in LAYER_KEYS}} for i, layer in enumerate(layers)]))
-        params = runs.json(exp, trial, "metrics/params.json")
+        params = runs.json(exp, trial, PARAMS_FILE)
         if params and isinstance(params.get("total"), int) and isinstance(params.get("trainable"), int):
             totals[source.label] = f"{params['total']:,} parameters, {params['trainable']:,} trainable"
     return (pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=LAYER_KEYS)), totals

@@ -8,6 +8,7 @@ from functools import partial
 from plls_bench.report import (claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent,
                                fig_sweep)
 from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 
 S = Source
 EVAL = "metrics/eval.jsonl"
@@ -41,7 +42,7 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("table2", "Table 2", "Hyper-parameters of PL-LS with PPO on CarRacing", (CR_PLLS, CR_PPO),
           partial(efficiency.hyperparameters, paper="table2"), "config.json", kind="table"),
     Entry("table3", "Table 3", "Learning efficiency on CarRacing", (CR_PLLS, CR_PPO),
-          efficiency.learning_efficiency, f"metrics/params.json, {EVAL}", kind="table"),
+          efficiency.learning_efficiency, f"{PARAMS_FILE}, {EVAL}", kind="table"),
     Entry("fig06", "Fig. 6", "MountainCar V_a, reconstruction loss per epoch", (S("mountaincar_va", "V_a"),),
           partial(fig_curves.loss_curves, model="action", metric="recon_mse"), "metrics/repr_train.jsonl"),
     Entry("fig07", "Fig. 7", "MountainCar, multi-step exploration in V_a's latent space",
@@ -60,7 +61,7 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("fig11_gaussian", "Fig. 11 (Gaussian)", "MountainCar, the PL-LS + PPO policy (SB3 Gaussian exploration)",
           (MC_PLLS,), fig_images.filmstrip, "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),
     Entry("fig12", "Fig. 12", "Structure of V_s", (S("carracing_vs", "V_s"),), fig_arch.architecture,
-          "metrics/architecture.json, metrics/params.json", size=(14.0, 5.0)),
+          f"{ARCHITECTURE_FILE}, {PARAMS_FILE}", size=(14.0, 5.0)),
     Entry("fig13", "Fig. 13", "CarRacing V_s, training loss per epoch", (S("carracing_vs", "V_s"),),
           partial(fig_curves.loss_curves, model="state", metric="loss"), "metrics/repr_train.jsonl"),
     Entry("fig14", "Fig. 14", "CarRacing, V_s reconstructions", (S("carracing_vs", "V_s"),),
@@ -71,7 +72,7 @@ ENTRIES: tuple[Entry, ...] = (
           (S("carracing_va", "V_a"),), fig_images.action_reconstructions,
           "samples/action_reconstructions.npz", size=(9.0, 6.0)),
     Entry("fig17", "Fig. 17", "Network structure of PL-LS + PPO and of plain PPO", (CR_PLLS, CR_PPO),
-          fig_arch.architecture, "metrics/architecture.json, metrics/params.json", size=(14.0, 8.0)),
+          fig_arch.architecture, f"{ARCHITECTURE_FILE}, {PARAMS_FILE}", size=(14.0, 8.0)),
     FIG18,
     Entry("fig19", "Fig. 19", "CarRacing, the learned PL-LS + PPO policy", (CR_PLLS,), fig_images.filmstrip,
           "filmstrip/frames.npz, filmstrip/filmstrip.json", size=(12.0, 6.0)),

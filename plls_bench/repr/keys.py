@@ -10,13 +10,11 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from plls_bench.artifacts import artifact_path
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import ActionReprConfig, Config, ConfigError, StateReprConfig
 from plls_bench.data import dataset_key
-from plls_bench.seeding import derive_seeds
+from plls_bench.seeding import derive_seeds, derived_seed
 
 REPR_FORMAT = 1  # bump when training or the stored layout changes: old artifacts are never reused
 KINDS = {"action": "repr_action", "state": "repr_state"}
@@ -41,7 +39,7 @@ def training_seed(cfg: Config, which: str) -> int:
     ``repr.per_trial_training`` also from the trial seed (trial 0 gets the shared model's seed)."""
     data_seed = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).data
     model_trial = cfg.seed if cfg.repr.per_trial_training else 0
-    return int(np.random.SeedSequence([data_seed, _STREAMS[which], model_trial]).generate_state(1)[0])
+    return derived_seed((data_seed, _STREAMS[which], model_trial))
 
 
 def repr_key(cfg: Config, which: str) -> dict[str, Any]:

@@ -6,7 +6,6 @@ that reuses an artifact built by another still gets complete metrics.
 """
 from __future__ import annotations
 
-import json
 import logging
 
 import torch
@@ -15,7 +14,7 @@ from plls_bench.config import Config
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.keys import NAMES
 from plls_bench.repr.store import Representations, ensure_representations
-from plls_bench.runs import Run, read_json
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, read_json
 
 log = logging.getLogger(__name__)
 
@@ -39,11 +38,10 @@ def run(cfg: Config, run: Run) -> None:
         modules[f"{name}.encoder"], examples[f"{name}.encoder"] = model.encoder, x.to(device)
         modules[f"{name}.decoder"] = model.decoder
         examples[f"{name}.decoder"] = torch.zeros(1, model.latent_dim, device=device)
-    run.write_bytes("metrics/repr_train.jsonl",
-                    "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
+    run.write_metrics("repr_train", rows)
     run.write_json("metrics/repr_test.json", model_test_metrics(reprs))
-    run.write_json("metrics/params.json", parameter_counts(modules, trainable=modules))
-    run.write_json("metrics/architecture.json", architecture_summary(modules, examples))
+    run.write_json(PARAMS_FILE, parameter_counts(modules, trainable=modules))
+    run.write_json(ARCHITECTURE_FILE, architecture_summary(modules, examples))
     for which, metrics in model_test_metrics(reprs).items():
         log.info("%s test MSE %.6g (mean predictor %.6g) from %s", NAMES[which], metrics["test_mse"],
                  metrics["mean_predictor_mse"], metrics["artifact"])

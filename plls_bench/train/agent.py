@@ -14,16 +14,14 @@ from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 from torch import nn
 
-from plls_bench.composition import config_from_dict
+from plls_bench.composition import recorded_config
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import latent_modules, wrap_latent
-from plls_bench.records.layout import runs_dir_of
 from plls_bench.repr.store import Representations, load_representations
-from plls_bench.runs import read_json
 from plls_bench.seeding import quiet_rng
-from plls_bench.train.checkpoint import latest, normalization
+from plls_bench.train.checkpoint import latest, missing_checkpoint, normalization
 from plls_bench.train.networks import ChannelsLastPolicy, policy_kwargs
 from plls_bench.train.normalize import ObsMap, frozen_obs_map
 
@@ -102,14 +100,10 @@ def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
     trained.reprs)`` observations (latent z with V_s) through :meth:`Trained.act`, which applies the
     saved VecNormalize statistics frozen; its actions are what that env's ``step`` takes (latent e
     with V_a). Never trains: a missing V_s / V_a artifact raises ``MissingArtifact``."""
-    record = read_json(Path(run_dir) / "config.json")
-    if record is None:
-        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    cfg = recorded_config(run_dir)
     found = latest(Path(run_dir))
     if found is None:
-        raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
-    cfg = config_from_dict(record["config"])
-    cfg = replace(cfg, runs_dir=runs_dir_of(run_dir, cfg.runs_dir))  # records load on any checkout
+        raise missing_checkpoint(run_dir)
     model = load_model(found[0], resolve_device(device))
     reprs = load_representations(replace(cfg, device=device))  # beside the policy, not on the recorded device
     return Trained(cfg, model, frozen_obs_map(normalization(Path(run_dir))), reprs)

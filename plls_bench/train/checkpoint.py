@@ -1,4 +1,5 @@
-"""PPO checkpoints: the SB3 model (weights and Adam state), RNG states and training progress.
+"""PPO checkpoints: the SB3 model (weights and Adam state), RNG states and training progress;
+and the progress record every trainer's checkpoint holds (:func:`progress_record`, DBC's too).
 
 Layout under ``<run>/checkpoints/``::
 
@@ -6,9 +7,7 @@ Layout under ``<run>/checkpoints/``::
     vecnormalize-<iteration>.json  VecNormalize statistics, only with algo.ppo.normalize_*
     latest.json           written last and atomically: the commit point of a checkpoint
 
-``latest.json`` holds the progress (iteration, agent steps, wall time: the fields of
-:class:`~plls_bench.train.loop.Progress` it has always held; the trainer derives the rest), the
-RNG states of python, numpy's global generator (SB3 shuffles minibatches with it) and torch
+``latest.json`` holds the progress (:func:`progress_record`), the RNG states of python, numpy's global generator (SB3 shuffles minibatches with it) and torch
 (action sampling), and names the zip it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
 zip intact; older files are deleted only after the new ``latest.json`` is in place.
 """
@@ -16,6 +15,7 @@ from __future__ import annotations
 
 import base64
 import random
+from dataclasses import asdict, fields
 from io import BytesIO
 from pathlib import Path
 from typing import Any
@@ -30,6 +30,31 @@ from plls_bench.train.loop import Progress
 LATEST = "latest.json"
 # Rollout leftovers are not needed: a resumed run resets its training envs (see ppo.py).
 _NOT_SAVED = ["_last_obs", "_last_episode_starts", "_last_original_obs"]
+
+
+def progress_record(progress: Progress) -> dict[str, Any]:
+    """What a checkpoint keeps of ``progress``: all of it, for PPO (``latest.json``) and DBC
+    (``dbc.pt``, ``progress.json``) alike; read back with :func:`restored_progress`."""
+    return asdict(progress)
+
+
+def restored_progress(saved: dict[str, Any], action_repeat: int | None = None) -> Progress:
+    """The :class:`Progress` a checkpoint saved. Checkpoints written before :func:`progress_record`
+    held part of it, and the rest follows: DBC's lacked ``iteration`` (its agent step); PPO's held
+    (iteration, agent_steps, wall_s), so env steps are agent steps x ``action_repeat`` (needed only
+    there), PPO's trainer recounts ``evaluations`` from its schedule and never counts ``episodes``."""
+    values = {f.name: saved[f.name] for f in fields(Progress) if f.name in saved}
+    values.setdefault("iteration", values["agent_steps"])
+    if "env_steps" not in values:
+        if action_repeat is None:
+            raise ValueError("the checkpoint saved no env_steps: restoring it needs the env's action_repeat")
+        values["env_steps"] = values["agent_steps"] * action_repeat
+    return Progress(**values)
+
+
+def missing_checkpoint(run_dir: str | Path) -> FileNotFoundError:
+    """The error of a trained policy asked of a run dir without a committed checkpoint."""
+    return FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
 
 
 def rng_state() -> dict[str, Any]:
@@ -61,23 +86,23 @@ def save(run: Run, model: PPO, progress: Progress, normalization: bytes | None =
     if normalization is not None:
         stats = f"vecnormalize-{progress.iteration:07d}.json"
         atomic_write_bytes(run.checkpoints_dir / stats, normalization)
-    saved = {"iteration": progress.iteration, "agent_steps": progress.agent_steps, "wall_s": progress.wall_s}
     run.write_json(f"checkpoints/{LATEST}", {"model": name, "normalization": stats,
-                                             "progress": saved, "rng": rng_state()})
+                                             "progress": progress_record(progress), "rng": rng_state()})
     for old in [*run.checkpoints_dir.glob("ppo-*.zip"), *run.checkpoints_dir.glob("vecnormalize-*.json")]:
         if old.name not in (name, stats):
             old.unlink(missing_ok=True)
 
 
-def latest(run_path: Path) -> tuple[Path, Progress, dict[str, Any]] | None:
-    """The last committed checkpoint: (model zip, progress, rng state), or None."""
+def latest(run_path: Path) -> tuple[Path, dict[str, Any], dict[str, Any]] | None:
+    """The last committed checkpoint: (model zip, saved progress for :func:`restored_progress`,
+    rng state), or None."""
     record = read_json(Path(run_path) / "checkpoints" / LATEST)
     if record is None:
         return None
     zip_path = Path(run_path) / "checkpoints" / record["model"]
     if not zip_path.is_file():
         raise FileNotFoundError(f"{zip_path} named by {LATEST} is missing; the checkpoint is corrupt")
-    return zip_path, Progress(**record["progress"]), record["rng"]
+    return zip_path, record["progress"], record["rng"]
 
 
 def normalization(run_path: Path) -> bytes | None:

@@ -29,7 +29,7 @@ from plls_bench.latent import wrap_latent
 from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.repr.store import Representations, ensure_representations
 from plls_bench.runs import Run
-from plls_bench.seeding import derive_seeds
+from plls_bench.seeding import derive_seeds, derived_seed
 from plls_bench.train import loop
 from plls_bench.train.dbc_accounting import write_accounting
 from plls_bench.train.dbc_state import load_checkpoint, save_checkpoint
@@ -50,10 +50,6 @@ def make_envs(cfg: Config, train_seed: int, reprs: Representations) -> tuple[Vec
 def to_env_action(action: np.ndarray, space) -> np.ndarray:
     """Agent actions ``(N, A)`` in [-1, 1] -> the env's action box (V_a's latent box when wrapped)."""
     return (space.low + (action + 1.0) * 0.5 * (space.high - space.low)).astype(space.dtype)
-
-
-def _stream_seed(seed: int, index: int) -> int:
-    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
 
 
 class Window:
@@ -119,7 +115,7 @@ class DBCTrainer:
     def start(self, at: Progress, resumed: bool) -> None:
         write_accounting(self.run, self.agent, self.train_env)
         if resumed:  # the interrupted episode is not continued
-            self.train_env.seed(_stream_seed(self.seeds.train, at.agent_steps))
+            self.train_env.seed(derived_seed((self.seeds.train, at.agent_steps)))
         self.obs = self.train_env.reset()
         self.replay.start_episode(self.obs[0])
         self.window, self.episode_return = Window(at), 0.0
@@ -173,7 +169,7 @@ class DBCTrainer:
 
         budget = self.cfg.budget
         episodes = run_episodes(self.eval_env, act, budget.eval_episodes,
-                                _stream_seed(self.seeds.eval, at.evaluations), budget.eval_max_steps)
+                                derived_seed((self.seeds.eval, at.evaluations)), budget.eval_max_steps)
         mean = float(np.mean(episodes.returns))
         log.info("eval at %d env steps: return %.1f", at.env_steps, mean)
         return EvalRow.at(at, episode_returns=episodes.returns, episode_lengths=episodes.lengths, return_mean=mean)

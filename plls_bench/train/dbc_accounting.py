@@ -19,7 +19,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from baselines.dbc import DBCAgent
 from plls_bench.latent import latent_modules
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
-from plls_bench.runs import Run
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
 
 
 class _OneInput(nn.Module):
@@ -74,5 +74,5 @@ def accounting(agent: DBCAgent, venv: VecEnv) -> tuple[dict[str, Any], dict[str,
 
 def write_accounting(run: Run, agent: DBCAgent, venv: VecEnv) -> None:
     params, architecture = accounting(agent, venv)
-    run.write_json("metrics/params.json", params)
-    run.write_json("metrics/architecture.json", architecture)
+    run.write_json(PARAMS_FILE, params)
+    run.write_json(ARCHITECTURE_FILE, architecture)

@@ -1,8 +1,9 @@
 """What a DBC run needs to resume after a kill: agent, optimisers, RNGs, counters and the replay.
 
 A checkpoint is ``checkpoints/dbc.pt`` (agent, optimisers, RNG states, the
-:class:`~plls_bench.train.loop.Progress` and ``replay_written``; a readable copy of the progress
-in ``checkpoints/progress.json``) plus
+:class:`~plls_bench.train.loop.Progress` as every checkpoint saves it
+(:func:`~plls_bench.train.checkpoint.progress_record`) and ``replay_written``; a readable copy of
+the progress in ``checkpoints/progress.json``) plus
 ``checkpoints/replay/chunk_<start>_<end>.npz``: each checkpoint appends only the replay slots
 written since the previous one, so saving stays cheap as the buffer grows. Chunks are written
 (atomically) before ``dbc.pt``; on resume, chunks past the checkpoint's slot count (from a
@@ -23,15 +24,15 @@ from gymnasium.spaces import Box
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.artifacts import load_npz, save_npz
-from plls_bench.composition import config_from_dict
+from plls_bench.composition import recorded_config
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import wrap_latent
-from plls_bench.records.layout import runs_dir_of
 from plls_bench.repr.store import Representations, load_representations
-from plls_bench.runs import Run, read_json
+from plls_bench.runs import Run
 from plls_bench.seeding import quiet_rng
+from plls_bench.train.checkpoint import missing_checkpoint, progress_record, restored_progress
 from plls_bench.train.loop import Progress
 
 CHECKPOINT = "checkpoints/dbc.pt"
@@ -52,13 +53,6 @@ def _chunks(run: Run) -> list[tuple[int, int, Path]]:
     return sorted(found)
 
 
-def _saved(progress: Progress, replay_written: int) -> dict[str, Any]:
-    """The progress as ``dbc.pt`` and ``progress.json`` have always held it (iteration is the
-    agent step), with the replay slots covered by saved chunks."""
-    return {"agent_steps": progress.agent_steps, "env_steps": progress.env_steps, "episodes": progress.episodes,
-            "evaluations": progress.evaluations, "wall_s": progress.wall_s, "replay_written": replay_written}
-
-
 def save_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay, progress: Progress,
                     rng: np.random.Generator) -> None:
     """Append the replay slots written since the last chunk as a new chunk, then write ``dbc.pt``
@@ -68,7 +62,7 @@ def save_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay, progress: Pr
     start, end = max(saved_end, replay.oldest), replay.n_written
     if end > start:
         save_npz(run.path / REPLAY_DIR / f"chunk_{start:012d}_{end:012d}.npz", replay.export(start, end))
-    saved = _saved(progress, end)
+    saved = {**progress_record(progress), "replay_written": end}  # with the replay slots saved in chunks
     state = {"agent": agent.state_dict(), "progress": saved,
              "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state()}
     buffer = io.BytesIO()
@@ -91,8 +85,7 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
         return None
     state: dict[str, Any] = torch.load(path, map_location=agent.device, weights_only=True)
     saved = state["progress"]
-    progress = Progress(iteration=saved["agent_steps"], agent_steps=saved["agent_steps"], wall_s=saved["wall_s"],
-                        env_steps=saved["env_steps"], evaluations=saved["evaluations"], episodes=saved["episodes"])
+    progress = restored_progress(saved)  # DBC's checkpoints have always saved env_steps
     agent.load_state_dict(state["agent"])
     rng.bit_generator.state = state["rng"]
     torch.set_rng_state(state["torch_rng"].cpu())  # map_location moved it to the agent's device
@@ -114,15 +107,11 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     Everything lands on ``device`` (``auto``: a GPU when present), whatever device the run trained
     on; the returned config says so (``cfg.device``). Never trains: a missing V_a artifact raises
     ``MissingArtifact``. The task's env is made (not reset or rendered) only to read its spaces."""
-    record = read_json(run_dir / "config.json")
-    if record is None:
-        raise FileNotFoundError(f"{run_dir}/config.json is missing: not a run directory")
+    cfg = replace(recorded_config(run_dir), device=device)  # the recorded device may be absent here
     path = run_dir / CHECKPOINT if (run_dir / CHECKPOINT).exists() else run_dir / POLICY
     if not path.exists():
-        raise FileNotFoundError(f"{run_dir}/checkpoints has no committed checkpoint")
+        raise missing_checkpoint(run_dir)
     target = resolve_device(device)  # refuses an absent GPU before any env is built
-    cfg = replace(config_from_dict(record["config"]), device=device)  # the recorded one may be absent here
-    cfg = replace(cfg, runs_dir=runs_dir_of(run_dir, cfg.runs_dir))  # records load on any checkout
     assert cfg.algo.dbc is not None
     reprs = load_representations(cfg)
     venv = wrap_latent(make_vec_env(cfg.env, 1, 0), reprs)  # the spaces the agent saw in training

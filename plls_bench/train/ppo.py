@@ -26,7 +26,7 @@ from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.runner import model_test_metrics
 from plls_bench.repr.store import ensure_representations
-from plls_bench.runs import Run
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
 from plls_bench.seeding import derive_seeds, sub_seed
 from plls_bench.train import checkpoint, loop, normalize
 from plls_bench.train.agent import accounting, build_vec_env, load_model, new_model, sb3_metrics
@@ -178,14 +178,15 @@ def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tu
     found = checkpoint.latest(run.path)
     if found is None:
         return new_model(cfg, venv), Progress(), True
-    zip_path, saved, rng = found
+    zip_path, saved_progress, rng = found
+    saved = checkpoint.restored_progress(saved_progress, cfg.env.action_repeat)
     venv.seed(sub_seed(train_seed, saved.iteration))
     saved_stats = checkpoint.normalization(run.path)
     if saved_stats is not None:
         normalize.restore(venv, saved_stats)
     model = load_model(zip_path, resolve_device(cfg.device), venv)  # under quiet_rng: the checkpoint's RNG states follow
     checkpoint.set_rng_state(rng)
-    return model, replace(saved, env_steps=saved.agent_steps * cfg.env.action_repeat), False
+    return model, saved, False
 
 
 def _dump_to_sb3(model: PPO, record: dict[str, Any], at: Progress) -> None:
@@ -200,9 +201,9 @@ def _dump_to_sb3(model: PPO, record: dict[str, Any], at: Progress) -> None:
 
 def _write_accounting(run: Run, model: PPO, venv: VecEnv) -> None:
     modules, examples = accounting(model, venv)
-    run.write_json("metrics/params.json", parameter_counts(modules, trainable=["policy"]))
+    run.write_json(PARAMS_FILE, parameter_counts(modules, trainable=["policy"]))
     with torch.random.fork_rng(devices=[]):  # the policy's forward samples an action
-        run.write_json("metrics/architecture.json", architecture_summary(modules, examples))
+        run.write_json(ARCHITECTURE_FILE, architecture_summary(modules, examples))
 
 
 def _mean(values: list[float]) -> float:
