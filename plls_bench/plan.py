@@ -23,7 +23,8 @@ from plls_bench.config import Config, ConfigError
 from plls_bench.records.layout import is_recorded, recorded_artifact, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
-from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, stable_hash, variant_name
+from plls_bench.hashing import stable_hash
+from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, variant_name
 from plls_bench.sweeps import Sweep
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"

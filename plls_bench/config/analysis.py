@@ -7,7 +7,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from plls_bench.config.checks import Validated, check, check_choice, check_positive
-from plls_bench.runs import stable_hash
+from plls_bench.hashing import stable_hash
 
 
 # --------------------------------------------------------------------------- studies
