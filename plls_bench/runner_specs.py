@@ -1,21 +1,20 @@
 """The runner registry: what each ``runner=NAME`` is, as typed :class:`RunnerSpec` entries.
 
-Everything that depends on which runner a config names asks here (config validation, the plan's
-order and costs, filmstrips, ``reproduce``) instead of comparing names. This module stays light:
+Everything that depends on which runner a config names asks here (the plan's order and costs,
+filmstrips, ``reproduce``) instead of comparing names. Config validation is the one exception: the
+config layer sits below this module, so its runner checks are its own table
+(:data:`plls_bench.config.runners.RUNNER_CHECKS`), with the same names as :data:`SPECS`. This module stays light:
 run functions and trained policies are reached through small loaders whose plain ``import``
 runs only when called, so choosing one task never imports another task's simulator (or torch).
 
-Adding a runner is one module with a ``run(cfg, run)`` function plus one entry in :data:`SPECS`
-(README, "Adding a runner").
+Adding a runner is one module with a ``run(cfg, run)`` function, one entry in :data:`SPECS` and its
+config checks (README, "Adding a runner").
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
-
-from plls_bench.config.runners import (validate_collect, validate_dbc, validate_ppo, validate_repr,
-                                       validate_study)
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
@@ -38,12 +37,11 @@ class TrainedPolicy:
 
 @dataclass(frozen=True)
 class RunnerSpec:
-    """One runner: how to load it, where it sits in a plan, what it costs, how its configs are checked."""
+    """One runner: how to load it, where it sits in a plan, what it costs, whether it films."""
 
     name: str
     load: Callable[[], RunFn]                  # imports the runner's module when called
     order: int                                 # plan order: artifacts before the runners that read them
-    validate: Callable[[Config], None]         # raises ConfigError naming the key
     trains_policy: bool = False                # costed as train + eval env steps
     uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
     costs_per_run: bool = False                # a fixed cost per run (rate key ``<name>/<experiment>``)
@@ -105,11 +103,11 @@ def _dbc_policy(run_dir: Path, device: str) -> TrainedPolicy:
 
 # --------------------------------------------------------------------------- the registry
 SPECS: tuple[RunnerSpec, ...] = (
-    RunnerSpec("collect", _collect, order=0, validate=validate_collect, uses_dataset=True),
-    RunnerSpec("repr", _repr, order=1, validate=validate_repr, uses_dataset=True),
-    RunnerSpec("study", _study, order=2, validate=validate_study, uses_dataset=True, costs_per_run=True),
-    RunnerSpec("ppo", _ppo, order=3, validate=validate_ppo, trains_policy=True, load_policy=_ppo_policy),
-    RunnerSpec("dbc", _dbc, order=4, validate=validate_dbc, trains_policy=True, load_policy=_dbc_policy),
+    RunnerSpec("collect", _collect, order=0, uses_dataset=True),
+    RunnerSpec("repr", _repr, order=1, uses_dataset=True),
+    RunnerSpec("study", _study, order=2, uses_dataset=True, costs_per_run=True),
+    RunnerSpec("ppo", _ppo, order=3, trains_policy=True, load_policy=_ppo_policy),
+    RunnerSpec("dbc", _dbc, order=4, trains_policy=True, load_policy=_dbc_policy),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 
