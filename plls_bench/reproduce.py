@@ -143,7 +143,7 @@ def _legacy_hash(path: Path) -> str | None:
 def export_run_records(runs_dir: str) -> None:
     """Copy the small files of every finished non-smoke run into the committed records folder
     beside the runs dir, so the evidence survives a fresh clone (commit them with git)."""
-    from plls_bench.records import export_records
+    from plls_bench.records.export import export_records
 
     done = export_records(runs_dir)
     print(f"[reproduce] records: {done.summary()} under {records_dir_for(runs_dir)} "

@@ -12,7 +12,8 @@ import pytest
 
 from plls_bench.analysis.filmstrip import make_filmstrip
 from plls_bench.plan import plan_profile
-from plls_bench.records import export, export_records
+from plls_bench.records import export
+from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR
 from plls_bench.report.load import Runs
 from plls_bench.runner import execute
