@@ -127,7 +127,7 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
         if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue
-        command = [sys.executable, "-m", "plls_bench.analysis.filmstrip", str(run.path),
+        command = [sys.executable, "-m", "plls_bench.film", str(run.path),
                    *(["--max-steps", str(cap)] if cap else [])]
         if subprocess.run(command).returncode != 0:
             failed.append(f"{plan.experiment} (filmstrip)")

@@ -3,9 +3,12 @@
 Everything that depends on which runner a config names asks here (the plan's order and costs,
 filmstrips, ``reproduce``) instead of comparing names. Config validation is the one exception: the
 config layer sits below this module, so its runner checks are its own table
-(:data:`plls_bench.config.runners.RUNNER_CHECKS`), with the same names as :data:`SPECS`. This module stays light:
-run functions and trained policies are reached through small loaders whose plain ``import``
-runs only when called, so choosing one task never imports another task's simulator (or torch).
+(:data:`plls_bench.config.runners.RUNNER_CHECKS`), with the same names as :data:`SPECS`.
+
+The registry sits above everything it loads (tests/test_imports.py): nothing it loads imports it
+back. It stays light: run functions and policy loaders are reached through small loaders whose
+plain ``import`` runs only when called, so choosing one task never imports another task's
+simulator (or torch).
 
 Adding a runner is one module with a ``run(cfg, run)`` function, one entry in :data:`SPECS` and its
 config checks (README, "Adding a runner").
@@ -13,26 +16,14 @@ config checks (README, "Adding a runner").
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
-    from plls_bench.repr.store import Representations
     from plls_bench.runs import Run
+    from plls_bench.train.policy import PolicyLoader
 
 RunFn = Callable[["Config", "Run"], None]
-Act = Callable[[Any], Any]  # batched observations (1, *O) -> actions (1, *A), numpy arrays
-
-
-@dataclass(frozen=True)
-class TrainedPolicy:
-    """A run's last checkpointed policy, ready to act deterministically (filmstrips)."""
-
-    cfg: Config      # the run's recorded config, on the device the policy was loaded to
-    act: Act
-    checkpoint: str  # file name of the checkpoint it came from
-    reprs: Representations  # its V_s / V_a, loaded (never trained) on that device
 
 
 @dataclass(frozen=True)
@@ -45,7 +36,7 @@ class RunnerSpec:
     trains_policy: bool = False                # costed as train + eval env steps
     uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
     costs_per_run: bool = False                # a fixed cost per run (rate key ``<name>/<experiment>``)
-    load_policy: Callable[[Path, str], TrainedPolicy] | None = None  # (run dir, device); None: nothing to film
+    load_policy: Callable[[], PolicyLoader] | None = None  # imports its policy loader; None: nothing to film
 
     @property
     def films(self) -> bool:
@@ -78,27 +69,14 @@ def _dbc() -> RunFn:
     return run
 
 
-def _ppo_policy(run_dir: Path, device: str) -> TrainedPolicy:
-    from dataclasses import replace
-
-    from plls_bench.train.agent import load_trained
-    from plls_bench.train.checkpoint import latest
-
-    trained = load_trained(run_dir, device)
-    found = latest(run_dir)
-    assert found is not None  # load_trained raised otherwise
-    # V_s / V_a join the policy on the device it was loaded to, not the recorded one
-    return TrainedPolicy(replace(trained.cfg, device=device), trained.act, found[0].name, trained.reprs)
+def _ppo_policy() -> PolicyLoader:
+    from plls_bench.train.agent import trained_policy
+    return trained_policy
 
 
-def _dbc_policy(run_dir: Path, device: str) -> TrainedPolicy:
-    from plls_bench.train.dbc import to_env_action
-    from plls_bench.train.dbc_state import CHECKPOINT, POLICY, load_trained_agent
-
-    cfg, agent, space, reprs = load_trained_agent(run_dir, device)
-    used = CHECKPOINT if (run_dir / CHECKPOINT).exists() else POLICY  # a record keeps the actor alone
-    return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
-                         Path(used).name, reprs)
+def _dbc_policy() -> PolicyLoader:
+    from plls_bench.train.dbc import trained_policy
+    return trained_policy
 
 
 # --------------------------------------------------------------------------- the registry

@@ -15,6 +15,7 @@ import logging
 import math
 import time
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,8 +33,9 @@ from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 from plls_bench.train import loop
 from plls_bench.train.dbc_accounting import write_accounting
-from plls_bench.train.dbc_state import load_checkpoint, save_checkpoint
+from plls_bench.train.dbc_state import CHECKPOINT, POLICY, load_checkpoint, load_trained_agent, save_checkpoint
 from plls_bench.train.loop import Progress
+from plls_bench.train.policy import TrainedPolicy
 
 log = logging.getLogger(__name__)
 
@@ -196,3 +198,11 @@ class DBCTrainer:
 def run(cfg: Config, run: Run) -> None:
     """Runner ``dbc`` (see module docstring)."""
     loop.train(DBCTrainer(cfg, run), run, cfg)
+
+
+def trained_policy(run_dir: Path, device: str) -> TrainedPolicy:
+    """The run's deterministic actor, from its checkpoint or, in a record, from the actor's weights alone."""
+    cfg, agent, space, reprs = load_trained_agent(run_dir, device)
+    used = CHECKPOINT if (run_dir / CHECKPOINT).exists() else POLICY  # a record keeps the actor alone
+    return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
+                         Path(used).name, reprs)
