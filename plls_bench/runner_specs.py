@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
+    from plls_bench.metrics import Lookup
     from plls_bench.runs import Run
     from plls_bench.train.policy import PolicyLoader
 
@@ -37,10 +38,18 @@ class RunnerSpec:
     uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
     costs_per_run: bool = False                # a fixed cost per run (rate key ``<name>/<experiment>``)
     load_policy: Callable[[], PolicyLoader] | None = None  # imports its policy loader; None: nothing to film
+    # What one ``iteration`` of its metric rows is, for the curves' x axis: ``{}`` filled from the
+    # recorded config's ``iteration_keys``. How many env steps it is: ``train/schedule.py``.
+    iteration_unit: str = "iteration"
+    iteration_keys: tuple[str, ...] = ()
 
     @property
     def films(self) -> bool:
         return self.load_policy is not None
+
+    def iteration_label(self, cfg: Lookup) -> str:
+        """The x-axis label of one iteration of a run of this runner (``cfg``: its recorded config)."""
+        return self.iteration_unit.format(*(cfg(key, None) for key in self.iteration_keys))
 
 
 # --------------------------------------------------------------------------- loaders
@@ -84,8 +93,13 @@ SPECS: tuple[RunnerSpec, ...] = (
     RunnerSpec("collect", _collect, order=0, uses_dataset=True),
     RunnerSpec("repr", _repr, order=1, uses_dataset=True),
     RunnerSpec("study", _study, order=2, uses_dataset=True, costs_per_run=True),
-    RunnerSpec("ppo", _ppo, order=3, trains_policy=True, load_policy=_ppo_policy),
-    RunnerSpec("dbc", _dbc, order=4, trains_policy=True, load_policy=_dbc_policy),
+    # one PPO iteration: a rollout of n_envs x n_steps vector-env steps and its update
+    RunnerSpec("ppo", _ppo, order=3, trains_policy=True, load_policy=_ppo_policy,
+               iteration_unit="PPO iteration ({} envs x {} steps)",
+               iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps")),
+    # one DBC iteration: one agent step (action repeat frames) and its update
+    RunnerSpec("dbc", _dbc, order=4, trains_policy=True, load_policy=_dbc_policy,
+               iteration_unit="iteration (agent steps)"),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 
@@ -104,3 +118,9 @@ def runner_spec(name: str) -> RunnerSpec:
 def filming_runners() -> tuple[str, ...]:
     """Runners whose runs hold a policy a filmstrip can show."""
     return tuple(spec.name for spec in SPECS if spec.films)
+
+
+def iteration_label(cfg: Lookup) -> str:
+    """The x-axis label of a recorded run's ``iteration``: its runner's, plain for an unknown runner."""
+    spec = RUNNERS.get(cfg("runner", None))
+    return spec.iteration_label(cfg) if spec else "iteration"
