@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +25,7 @@ from plls_bench.repr.keys import repr_key
 from plls_bench.hashing import stable_hash
 from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, variant_name
 from plls_bench.sweeps import Sweep
+from plls_bench.train.schedule import Schedule
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
 
@@ -191,11 +191,10 @@ def rate_suffix(cfg: Config, env_bound: bool = True, precision_bound: bool = Tru
 
 
 def _eval_env_steps(cfg: Config) -> int:
-    """Upper bound: every evaluation runs full-length test episodes (plus one at step 0)."""
+    """Upper bound: every evaluation of the trainer's schedule runs full-length test episodes."""
     budget = cfg.budget
     episode = budget.eval_max_steps * cfg.env.action_repeat if budget.eval_max_steps else cfg.env.max_episode_steps
-    evaluations = math.ceil(budget.train_env_steps / budget.eval_every_env_steps) + 1
-    return evaluations * budget.eval_episodes * episode
+    return Schedule.of(cfg).evaluations * budget.eval_episodes * episode
 
 
 def _repr_identity(cfg: Config, which: str) -> dict[str, Any]:
