@@ -34,9 +34,12 @@ class RunnerSpec:
     name: str
     load: Callable[[], RunFn]                  # imports the runner's module when called
     order: int                                 # plan order: artifacts before the runners that read them
-    trains_policy: bool = False                # costed as train + eval env steps
+    # How ``bench/throughput.py`` times its rates for the dry run: the name of one of its
+    # measurements (MEASURES), which gives the rate keys of its kinds (``plan.rate_keys``).
+    measure: str
+    trains_policy: bool = False                # costed as train + eval env steps (rate kinds train, eval)
     uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
-    costs_per_run: bool = False                # a fixed cost per run (rate key ``<name>/<experiment>``)
+    costs_per_run: bool = False                # a fixed cost per run (rate kind run: ``<name>/<experiment>``)
     load_policy: Callable[[], PolicyLoader] | None = None  # imports its policy loader; None: nothing to film
     # What one ``iteration`` of its metric rows is, for the curves' x axis: ``{}`` filled from the
     # recorded config's ``iteration_keys``. How many env steps it is: ``train/schedule.py``.
@@ -90,15 +93,15 @@ def _dbc_policy() -> PolicyLoader:
 
 # --------------------------------------------------------------------------- the registry
 SPECS: tuple[RunnerSpec, ...] = (
-    RunnerSpec("collect", _collect, order=0, uses_dataset=True),
-    RunnerSpec("repr", _repr, order=1, uses_dataset=True),
-    RunnerSpec("study", _study, order=2, uses_dataset=True, costs_per_run=True),
+    RunnerSpec("collect", _collect, order=0, measure="collection", uses_dataset=True),
+    RunnerSpec("repr", _repr, order=1, measure="vae_epoch", uses_dataset=True),
+    RunnerSpec("study", _study, order=2, measure="study_run", uses_dataset=True, costs_per_run=True),
     # one PPO iteration: a rollout of n_envs x n_steps vector-env steps and its update
-    RunnerSpec("ppo", _ppo, order=3, trains_policy=True, load_policy=_ppo_policy,
+    RunnerSpec("ppo", _ppo, order=3, measure="ppo_iterations", trains_policy=True, load_policy=_ppo_policy,
                iteration_unit="PPO iteration ({} envs x {} steps)",
                iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps")),
     # one DBC iteration: one agent step (action repeat frames) and its update
-    RunnerSpec("dbc", _dbc, order=4, trains_policy=True, load_policy=_dbc_policy,
+    RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)"),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
