@@ -21,7 +21,7 @@ import tempfile
 import time
 from datetime import date
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -34,7 +34,7 @@ from bench.representations import TINY_REPR, prepare_representations  # noqa: E4
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS, Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
-from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_suffix  # noqa: E402
+from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_keys as plan_rate_keys  # noqa: E402
 from plls_bench.runner_specs import runner_spec  # noqa: E402
 from plls_bench.runs import atomic_write_json  # noqa: E402
 
@@ -122,26 +122,30 @@ def _dbc(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[s
     return [(1.0 / seconds_per_env_step, "env steps/s"), (m["env_sps"], "env steps/s")]
 
 
-Measure = Callable[[Config, list[str], argparse.Namespace, tuple[str, ...]], list[tuple[float, str]]]
-# runner -> how its rates are measured (one value per rate key), and whether they are env-bound
-# (then measured per backend). A new runner adds its entry here (README, "Adding a runner").
-MEASURES: dict[str, tuple[Measure, bool]] = {
-    "collect": (_collect, True), "repr": (_repr, False), "study": (_study, False),
-    "ppo": (_ppo, True), "dbc": (_dbc, True),
+class Measurement(NamedTuple):
+    """How one kind of work is timed: one value per rate key of ``kinds`` (``plls_bench.plan.rate_keys``)."""
+
+    measure: Callable[[Config, list[str], argparse.Namespace, tuple[str, ...]], list[tuple[float, str]]]
+    kinds: tuple[str, ...]  # the rate kinds it gives, in the order ``measure`` returns them
+    env_bound: bool         # steps the env: measured per backend
+
+
+# Measurement name -> how it is timed. A runner names its measurement on its RunnerSpec
+# (``measure``); only a runner whose work none of these times adds one here.
+MEASURES: dict[str, Measurement] = {
+    "collection": Measurement(_collect, ("collect",), True),
+    "vae_epoch": Measurement(_repr, ("repr_state", "repr_action"), False),
+    "study_run": Measurement(_study, ("run",), False),
+    "ppo_iterations": Measurement(_ppo, ("train", "eval"), True),
+    "dbc_steps": Measurement(_dbc, ("train", "eval"), True),
 }
 
 
 def rate_keys(cfg: Config) -> list[str]:
-    """The rate keys ``plls_bench.plan`` looks up for a preset (env-bound ones per backend)."""
-    spec, env, preset = runner_spec(cfg.runner), cfg.env.name, cfg.experiment
-    if spec.trains_policy:
-        return [f"train/{preset}{rate_suffix(cfg)}", f"eval/{preset}{rate_suffix(cfg)}"]
-    if spec.costs_per_run:
-        return [f"{spec.name}/{preset}"]
-    if MEASURES[spec.name][1]:  # collection
-        return [f"collect/{env}{rate_suffix(cfg, precision_bound=False)}"]
-    return [f"repr_{w}/{env}{rate_suffix(cfg, False, w == 'state')}" for w in ("state", "action")
-            if getattr(cfg.repr, w).kind == "vae"]
+    """The rate keys a preset's measurement gives: those of the plan's keys for its config that
+    its runner's measurement times (env-bound ones per backend)."""
+    keys = plan_rate_keys(cfg)
+    return [keys[kind] for kind in MEASURES[runner_spec(cfg.runner).measure].kinds if kind in keys]
 
 
 def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float, str]]:
@@ -150,7 +154,7 @@ def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float
     engine = (f"env.backend={args.backend}", f"precision={args.precision}")
     if args.backend != "gymnasium":
         base = _config(preset, args.budget, args.runs)
-        if base.env.gym_id not in ENVPOOL_GYM_IDS or not MEASURES[base.runner][1]:
+        if base.env.gym_id not in ENVPOOL_GYM_IDS or not MEASURES[runner_spec(base.runner).measure].env_bound:
             return {}  # envpool's tasks only, and only work that steps the env
     cfg = _config(preset, args.budget, args.runs, *engine)
     keys = rate_keys(cfg)
@@ -158,7 +162,7 @@ def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float
         keys = [key for key in keys if key.endswith(f"@{args.precision}")]
     if not keys or args.keys is not None and not any(k.startswith(tuple(args.keys)) for k in keys):
         return {}
-    measure, _ = MEASURES[cfg.runner]
+    measure = MEASURES[runner_spec(cfg.runner).measure].measure
     return dict(zip(keys, measure(cfg, keys, args, engine)))
 
 

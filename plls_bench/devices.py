@@ -1,9 +1,9 @@
 """The one place that turns a ``device`` setting (``cpu`` / ``cuda`` / ``auto``) into a torch device.
 
 Every runner, loader and report tool goes through :func:`resolve_device`, so ``auto`` means the
-same everywhere: the first CUDA GPU when torch sees one, else the CPU. torch is imported lazily:
-the config schemas use :data:`DEVICES` and the command line is validated without loading torch
-unless a GPU is asked for.
+same everywhere: the first CUDA GPU when torch sees one, else the CPU. The settings a config may
+name (``DEVICES``) are the config layer's, below this module. torch is imported lazily: the command
+line is validated without loading torch unless a GPU is asked for.
 """
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import platform
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from plls_bench.config import DEVICES, ConfigError
+
 if TYPE_CHECKING:
     import torch
-
-DEVICES = ("cpu", "cuda", "auto")
 
 
 def cuda_available() -> bool:
@@ -32,8 +32,6 @@ def require_device(name: str, key: str = "device") -> None:
     where a command is about to compute (the CLI, a runner's start, a loader), never when a
     recorded config is read back, so a run made on a GPU machine stays readable on a CPU one.
     """
-    from plls_bench.config.checks import ConfigError  # lazy: plls_bench.config imports DEVICES from here
-
     if name not in DEVICES:
         raise ConfigError(f"{key}: unknown value {name!r}; choose one of {', '.join(DEVICES)}")
     if name == "cuda" and not cuda_available():

@@ -7,7 +7,8 @@ a :class:`TrainRow`'s prefixed metrics (``loss/*``, ``train/*``, ``rollout/*``, 
 dirs and the committed records read into the same rows (:meth:`TrainRow.from_record`,
 :meth:`EvalRow.from_record`); a counter a hand-written or damaged row lacks reads as None.
 
-What one ``iteration`` is differs per runner and is stated once, in :data:`ITERATION_UNITS`.
+What one ``iteration`` is differs per runner and is stated once, on its ``RunnerSpec``
+(``iteration_unit``, ``plls_bench/runner_specs.py``).
 """
 from __future__ import annotations
 
@@ -18,13 +19,6 @@ from typing import Any, Callable, Protocol
 import numpy as np
 
 Lookup = Callable[[str, Any], Any]  # a dotted config lookup with a default (Trial.cfg, Experiment.cfg)
-
-# The unit of ``iteration`` per runner: a label and the config keys it names. PPO: one rollout of
-# n_envs x n_steps vector-env steps and its update; DBC: one agent step (action repeat frames).
-ITERATION_UNITS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "ppo": ("PPO iteration ({} envs x {} steps)", ("algo.ppo.n_envs", "algo.ppo.n_steps")),
-    "dbc": ("iteration (agent steps)", ()),
-}
 
 
 class At(Protocol):
@@ -111,12 +105,6 @@ class EvalRow(Counters):
         values["episode_returns"] = list(record.get("episode_returns") or [])
         values["episode_lengths"] = list(record.get("episode_lengths") or [])
         return cls(**values, return_mean=mean)
-
-
-def iteration_label(cfg: Lookup) -> str:
-    """The axis label naming what one ``iteration`` is for a run's runner (:data:`ITERATION_UNITS`)."""
-    template, keys = ITERATION_UNITS.get(cfg("runner", None), ("iteration", ()))
-    return template.format(*(cfg(key, None) for key in keys))
 
 
 def parallel_envs(cfg: Lookup) -> int:

@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,8 +22,10 @@ from plls_bench.config import Config, ConfigError
 from plls_bench.records.layout import is_recorded, recorded_artifact, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
-from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, stable_hash, variant_name
+from plls_bench.hashing import stable_hash
+from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, variant_name
 from plls_bench.sweeps import Sweep
+from plls_bench.train.schedule import Schedule
 
 THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
 
@@ -156,26 +157,42 @@ def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tu
     return (None if missing else total), sorted(set(missing))
 
 
+def rate_keys(cfg: Config) -> dict[str, str]:
+    """Every rate key a trial of ``cfg`` can be costed with, by the work it prices: ``collect`` (its
+    dataset), ``repr_state`` / ``repr_action`` (its V_s / V_a), ``train`` and ``eval`` (policy
+    learning and its evaluations), ``run`` (a fixed cost per run). The one place rate keys are
+    built: the plan's costs and ``bench/throughput.py``'s measurements both read them here."""
+    spec, env, preset = runner_spec(cfg.runner), cfg.env.name, cfg.experiment
+    models = [which for which in ("state", "action") if getattr(cfg.repr, which).kind == "vae"]
+    keys = {}
+    if spec.uses_dataset or models:
+        keys["collect"] = f"collect/{env}{rate_suffix(cfg, precision_bound=False)}"
+    for which in models:  # only V_s has conv trunks: V_a's rate does not depend on the precision
+        keys[f"repr_{which}"] = f"repr_{which}/{env}{rate_suffix(cfg, False, which == 'state')}"
+    if spec.trains_policy:
+        keys.update(train=f"train/{preset}{rate_suffix(cfg)}", eval=f"eval/{preset}{rate_suffix(cfg)}")
+    if spec.costs_per_run:
+        keys["run"] = f"{spec.name}/{preset}"
+    return keys
+
+
 def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     """(rate key, amount) pairs: env steps, training samples, or runs (for fixed-cost studies)."""
     from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
 
-    env, budget, work, spec = cfg.env.name, cfg.budget, [], runner_spec(cfg.runner)
+    budget, keys, work, spec = cfg.budget, rate_keys(cfg), [], runner_spec(cfg.runner)
     data_steps = budget.data_episodes * budget.data_steps_per_episode
-    trained = [which for which in ("state", "action") if getattr(cfg.repr, which).kind == "vae"
+    trained = [which for which in ("state", "action") if f"repr_{which}" in keys
                and _first(costed, cfg.runs_dir, f"repr_{which}", _repr_identity(cfg, which))]
     # a recorded V_s / V_a is restored, not trained: it needs no dataset
     if (spec.uses_dataset or trained) and _first(costed, cfg.runs_dir, "data", dataset_key(cfg)):
-        work.append((f"collect/{env}{rate_suffix(cfg, precision_bound=False)}", data_steps))
+        work.append((keys["collect"], data_steps))
     for which in trained:
-        samples = data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)
-        # only V_s has conv trunks: V_a's rate does not depend on the precision
-        work.append((f"repr_{which}/{env}{rate_suffix(cfg, False, which == 'state')}", samples))
-    if spec.trains_policy:
-        work.append((f"train/{cfg.experiment}{rate_suffix(cfg)}", budget.train_env_steps))
-        work.append((f"eval/{cfg.experiment}{rate_suffix(cfg)}", _eval_env_steps(cfg)))
-    if spec.costs_per_run:
-        work.append((f"{spec.name}/{cfg.experiment}", 1))
+        work.append((keys[f"repr_{which}"], data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)))
+    if "train" in keys:
+        work += [(keys["train"], budget.train_env_steps), (keys["eval"], _eval_env_steps(cfg))]
+    if "run" in keys:
+        work.append((keys["run"], 1))
     return work
 
 
@@ -190,11 +207,10 @@ def rate_suffix(cfg: Config, env_bound: bool = True, precision_bound: bool = Tru
 
 
 def _eval_env_steps(cfg: Config) -> int:
-    """Upper bound: every evaluation runs full-length test episodes (plus one at step 0)."""
+    """Upper bound: every evaluation of the trainer's schedule runs full-length test episodes."""
     budget = cfg.budget
     episode = budget.eval_max_steps * cfg.env.action_repeat if budget.eval_max_steps else cfg.env.max_episode_steps
-    evaluations = math.ceil(budget.train_env_steps / budget.eval_every_env_steps) + 1
-    return evaluations * budget.eval_episodes * episode
+    return Schedule.of(cfg).evaluations * budget.eval_episodes * episode
 
 
 def _repr_identity(cfg: Config, which: str) -> dict[str, Any]:

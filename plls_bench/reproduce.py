@@ -127,7 +127,7 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
         if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue
-        command = [sys.executable, "-m", "plls_bench.analysis.filmstrip", str(run.path),
+        command = [sys.executable, "-m", "plls_bench.film", str(run.path),
                    *(["--max-steps", str(cap)] if cap else [])]
         if subprocess.run(command).returncode != 0:
             failed.append(f"{plan.experiment} (filmstrip)")
@@ -143,7 +143,7 @@ def _legacy_hash(path: Path) -> str | None:
 def export_run_records(runs_dir: str) -> None:
     """Copy the small files of every finished non-smoke run into the committed records folder
     beside the runs dir, so the evidence survives a fresh clone (commit them with git)."""
-    from plls_bench.records import export_records
+    from plls_bench.records.export import export_records
 
     done = export_records(runs_dir)
     print(f"[reproduce] records: {done.summary()} under {records_dir_for(runs_dir)} "

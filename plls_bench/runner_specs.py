@@ -1,57 +1,58 @@
 """The runner registry: what each ``runner=NAME`` is, as typed :class:`RunnerSpec` entries.
 
-Everything that depends on which runner a config names asks here (config validation, the plan's
-order and costs, filmstrips, ``reproduce``) instead of comparing names. This module stays light:
-run functions and trained policies are reached through small loaders whose plain ``import``
-runs only when called, so choosing one task never imports another task's simulator (or torch).
+Everything that depends on which runner a config names asks here (the plan's order and costs,
+filmstrips, ``reproduce``) instead of comparing names. Config validation is the one exception: the
+config layer sits below this module, so its runner checks are its own table
+(:data:`plls_bench.config.runners.RUNNER_CHECKS`), with the same names as :data:`SPECS`.
 
-Adding a runner is one module with a ``run(cfg, run)`` function plus one entry in :data:`SPECS`
-(README, "Adding a runner").
+The registry sits above everything it loads (tests/test_imports.py): nothing it loads imports it
+back. It stays light: run functions and policy loaders are reached through small loaders whose
+plain ``import`` runs only when called, so choosing one task never imports another task's
+simulator (or torch).
+
+Adding a runner is one module with a ``run(cfg, run)`` function, one entry in :data:`SPECS` and its
+config checks (README, "Adding a runner").
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
-
-from plls_bench.config.runners import (validate_collect, validate_dbc, validate_ppo, validate_repr,
-                                       validate_study)
+from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
-    from plls_bench.repr.store import Representations
+    from plls_bench.metrics import Lookup
     from plls_bench.runs import Run
+    from plls_bench.train.policy import PolicyLoader
 
 RunFn = Callable[["Config", "Run"], None]
-Act = Callable[[Any], Any]  # batched observations (1, *O) -> actions (1, *A), numpy arrays
-
-
-@dataclass(frozen=True)
-class TrainedPolicy:
-    """A run's last checkpointed policy, ready to act deterministically (filmstrips)."""
-
-    cfg: Config      # the run's recorded config, on the device the policy was loaded to
-    act: Act
-    checkpoint: str  # file name of the checkpoint it came from
-    reprs: Representations  # its V_s / V_a, loaded (never trained) on that device
 
 
 @dataclass(frozen=True)
 class RunnerSpec:
-    """One runner: how to load it, where it sits in a plan, what it costs, how its configs are checked."""
+    """One runner: how to load it, where it sits in a plan, what it costs, whether it films."""
 
     name: str
     load: Callable[[], RunFn]                  # imports the runner's module when called
     order: int                                 # plan order: artifacts before the runners that read them
-    validate: Callable[[Config], None]         # raises ConfigError naming the key
-    trains_policy: bool = False                # costed as train + eval env steps
+    # How ``bench/throughput.py`` times its rates for the dry run: the name of one of its
+    # measurements (MEASURES), which gives the rate keys of its kinds (``plan.rate_keys``).
+    measure: str
+    trains_policy: bool = False                # costed as train + eval env steps (rate kinds train, eval)
     uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
-    costs_per_run: bool = False                # a fixed cost per run (rate key ``<name>/<experiment>``)
-    load_policy: Callable[[Path, str], TrainedPolicy] | None = None  # (run dir, device); None: nothing to film
+    costs_per_run: bool = False                # a fixed cost per run (rate kind run: ``<name>/<experiment>``)
+    load_policy: Callable[[], PolicyLoader] | None = None  # imports its policy loader; None: nothing to film
+    # What one ``iteration`` of its metric rows is, for the curves' x axis: ``{}`` filled from the
+    # recorded config's ``iteration_keys``. How many env steps it is: ``train/schedule.py``.
+    iteration_unit: str = "iteration"
+    iteration_keys: tuple[str, ...] = ()
 
     @property
     def films(self) -> bool:
         return self.load_policy is not None
+
+    def iteration_label(self, cfg: Lookup) -> str:
+        """The x-axis label of one iteration of a run of this runner (``cfg``: its recorded config)."""
+        return self.iteration_unit.format(*(cfg(key, None) for key in self.iteration_keys))
 
 
 # --------------------------------------------------------------------------- loaders
@@ -80,36 +81,28 @@ def _dbc() -> RunFn:
     return run
 
 
-def _ppo_policy(run_dir: Path, device: str) -> TrainedPolicy:
-    from dataclasses import replace
-
-    from plls_bench.train.agent import load_trained
-    from plls_bench.train.checkpoint import latest
-
-    trained = load_trained(run_dir, device)
-    found = latest(run_dir)
-    assert found is not None  # load_trained raised otherwise
-    # V_s / V_a join the policy on the device it was loaded to, not the recorded one
-    return TrainedPolicy(replace(trained.cfg, device=device), trained.act, found[0].name, trained.reprs)
+def _ppo_policy() -> PolicyLoader:
+    from plls_bench.train.agent import trained_policy
+    return trained_policy
 
 
-def _dbc_policy(run_dir: Path, device: str) -> TrainedPolicy:
-    from plls_bench.train.dbc import to_env_action
-    from plls_bench.train.dbc_state import CHECKPOINT, POLICY, load_trained_agent
-
-    cfg, agent, space, reprs = load_trained_agent(run_dir, device)
-    used = CHECKPOINT if (run_dir / CHECKPOINT).exists() else POLICY  # a record keeps the actor alone
-    return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
-                         Path(used).name, reprs)
+def _dbc_policy() -> PolicyLoader:
+    from plls_bench.train.dbc import trained_policy
+    return trained_policy
 
 
 # --------------------------------------------------------------------------- the registry
 SPECS: tuple[RunnerSpec, ...] = (
-    RunnerSpec("collect", _collect, order=0, validate=validate_collect, uses_dataset=True),
-    RunnerSpec("repr", _repr, order=1, validate=validate_repr, uses_dataset=True),
-    RunnerSpec("study", _study, order=2, validate=validate_study, uses_dataset=True, costs_per_run=True),
-    RunnerSpec("ppo", _ppo, order=3, validate=validate_ppo, trains_policy=True, load_policy=_ppo_policy),
-    RunnerSpec("dbc", _dbc, order=4, validate=validate_dbc, trains_policy=True, load_policy=_dbc_policy),
+    RunnerSpec("collect", _collect, order=0, measure="collection", uses_dataset=True),
+    RunnerSpec("repr", _repr, order=1, measure="vae_epoch", uses_dataset=True),
+    RunnerSpec("study", _study, order=2, measure="study_run", uses_dataset=True, costs_per_run=True),
+    # one PPO iteration: a rollout of n_envs x n_steps vector-env steps and its update
+    RunnerSpec("ppo", _ppo, order=3, measure="ppo_iterations", trains_policy=True, load_policy=_ppo_policy,
+               iteration_unit="PPO iteration ({} envs x {} steps)",
+               iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps")),
+    # one DBC iteration: one agent step (action repeat frames) and its update
+    RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
+               iteration_unit="iteration (agent steps)"),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 
@@ -128,3 +121,9 @@ def runner_spec(name: str) -> RunnerSpec:
 def filming_runners() -> tuple[str, ...]:
     """Runners whose runs hold a policy a filmstrip can show."""
     return tuple(spec.name for spec in SPECS if spec.films)
+
+
+def iteration_label(cfg: Lookup) -> str:
+    """The x-axis label of a recorded run's ``iteration``: its runner's, plain for an unknown runner."""
+    spec = RUNNERS.get(cfg("runner", None))
+    return spec.iteration_label(cfg) if spec else "iteration"

@@ -17,7 +17,6 @@ Nothing outside this module writes into a run directory except through :class:`R
 from __future__ import annotations
 
 import copy
-import hashlib
 import json
 import os
 import re
@@ -27,6 +26,8 @@ import time
 from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
+
+from plls_bench.hashing import stable_hash
 
 STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
 SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
@@ -145,12 +146,6 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
 def config_dict(cfg: Any) -> dict[str, Any]:
     """A plain dict of a (dataclass) config."""
     return asdict(cfg) if is_dataclass(cfg) else dict(cfg)
-
-
-def stable_hash(obj: Any, length: int = 16) -> str:
-    """Hex digest of the canonical JSON of ``obj`` (sorted keys)."""
-    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:length]
 
 
 def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLUDED_KEYS) -> dict[str, Any]:

@@ -15,6 +15,7 @@ from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, r
 from plls_bench.seeding import derive_seeds
 from plls_bench.train import checkpoint, normalize, ppo
 from plls_bench.train.agent import build_vec_env, load_trained, new_model
+from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset, run_cli, start_cli
 
 NEW_PPO_KEYS = ("use_sde", "sde_sample_freq", "normalize_obs", "normalize_reward")
@@ -66,8 +67,8 @@ def test_zoo_preset_carries_the_zoo_recipe(tmp_path: Path) -> None:
 def test_gsde_preset_budget_is_seven_trials_of_200_iterations_at_quick(tmp_path: Path) -> None:
     for preset in ("mountaincar_ppo_gsde", "mountaincar_plls_ppo_gsde"):
         cfg = compose_preset(preset, tmp_path, "budget=quick")
-        assert cfg.budget.trials == 7 and ppo.Plan.of(cfg).iterations == 200
-    assert ppo.Plan.of(compose_preset("mountaincar_ppo", tmp_path, "budget=quick")).iterations == 100
+        assert cfg.budget.trials == 7 and Schedule.of(cfg).iterations == 200
+    assert Schedule.of(compose_preset("mountaincar_ppo", tmp_path, "budget=quick")).iterations == 100
 
 
 @pytest.mark.slow

@@ -54,7 +54,7 @@ def test_a_step_cap_ends_the_strip_on_its_last_step(tmp_path: Path) -> None:
 
 
 def film(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "plls_bench.analysis.filmstrip", *args], cwd=REPO_ROOT,
+    return subprocess.run([sys.executable, "-m", "plls_bench.film", *args], cwd=REPO_ROOT,
                           capture_output=True, text=True, timeout=300)
 
 

@@ -17,7 +17,7 @@ from plls_bench.evaluate import run_episodes
 from plls_bench.runs import HASH_EXCLUDED_KEYS, config_dict
 from plls_bench.train.agent import build_vec_env
 from plls_bench.train.networks import PaperCNN, SharedMLP, policy_kwargs
-from plls_bench.train.ppo import Plan
+from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset
 
 PPO_PRESETS = ["mountaincar_ppo", "mountaincar_plls_ppo", "carracing_ppo", "carracing_plls_ppo",
@@ -126,7 +126,7 @@ def test_a_trunk_that_does_not_fit_the_observations_is_refused() -> None:
     ("carracing", "paper", 120, 2), ("carracing", "quick", 64, 4), ("carracing", "smoke", 2, 1),
 ])
 def test_budgets_in_ppo_iterations(env: str, budget: str, iterations: int, eval_every: int) -> None:
-    plan = Plan.of(compose([f"+experiment={env}_ppo", f"budget={budget}"]))
+    plan = Schedule.of(compose([f"+experiment={env}_ppo", f"budget={budget}"]))
     assert (plan.iterations, plan.eval_every) == (iterations, eval_every)
     assert plan.eval_at(0) and plan.eval_at(iterations)
 

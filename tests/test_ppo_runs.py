@@ -12,7 +12,7 @@ import pytest
 from plls_bench.runner import execute
 from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, read_jsonl
 from plls_bench.train.agent import build_vec_env, load_trained
-from plls_bench.train.ppo import Plan
+from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset, run_cli, start_cli
 
 PPO_PRESETS = ["mountaincar_ppo", "mountaincar_plls_ppo", "mountaincar_ppo_gsde", "mountaincar_plls_ppo_gsde",
@@ -23,7 +23,7 @@ TRAIN_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "loss/policy", 
               "loss/entropy", "train/approx_kl", "train/clip_fraction", "perf/sps"}
 
 
-def check_run_contract(run_dir: Path, plan: Plan, eval_episodes: int) -> None:
+def check_run_contract(run_dir: Path, plan: Schedule, eval_episodes: int) -> None:
     """What the collector reads from a finished PPO run."""
     run = Run(run_dir)
     assert (run.read_status() or {}).get("state") == "done"
@@ -60,7 +60,7 @@ def test_preset_runs_end_to_end_at_smoke_budget(preset: str, shared_runs: Path) 
     cfg = compose_preset(preset, shared_runs)
     run_dir = shared_runs / preset / "default" / "seed=0"
     assert execute(cfg, run_dir) == "done"
-    check_run_contract(run_dir, Plan.of(cfg), cfg.budget.eval_episodes)
+    check_run_contract(run_dir, Schedule.of(cfg), cfg.budget.eval_episodes)
     params = json.loads((run_dir / PARAMS_FILE).read_text())
     frozen = {"V_s.encoder"} if cfg.repr.state.kind == "vae" else set()
     frozen |= {"V_a.decoder"} if cfg.repr.action.kind == "vae" else set()
@@ -123,6 +123,6 @@ def test_sigkill_mid_training_resumes_without_losing_or_duplicating_evals(runs_d
     done = run_cli(*args)
     assert done.returncode == 0, done.stdout + done.stderr
     cfg = compose_preset("mountaincar_ppo", runs_dir, "budget.train_env_steps=5120", "budget.eval_every_env_steps=512")
-    check_run_contract(run_dir, Plan.of(cfg), cfg.budget.eval_episodes)
+    check_run_contract(run_dir, Schedule.of(cfg), cfg.budget.eval_episodes)
     provenance = json.loads((run_dir / "provenance.json").read_text())
     assert len(provenance["starts"]) == 2, "the second launch resumed the same run dir"

@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from bench.throughput import rate_keys
+from bench.throughput import MEASURES, rate_keys
 from plls_bench.plan import plan_profile, rate_suffix
+from plls_bench.runner_specs import SPECS
 from tests.conftest import compose_preset
 
 TRAIN, EVAL = "train/carracing_ppo", "eval/carracing_ppo"
@@ -35,6 +36,10 @@ def test_bench_measures_the_keys_the_plan_looks_up(runs_dir: Path) -> None:
     assert rate_keys(vs) == ["repr_state/carracing@bf16"]  # V_s has conv trunks
     va = compose_preset("carracing_va", runs_dir, "budget=quick", "precision=bf16")
     assert rate_keys(va) == ["repr_action/carracing"]  # V_a is an MLP: one rate for both
+
+
+def test_every_runner_names_a_measurement_the_bench_has() -> None:
+    assert {spec.measure for spec in SPECS} <= set(MEASURES)
 
 
 def test_a_bf16_plan_uses_bf16_rates_and_never_falls_back_to_fp32(runs_dir: Path) -> None:

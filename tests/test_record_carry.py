@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.analysis.filmstrip import make_filmstrip
+from plls_bench.film import film_run
 from plls_bench.plan import plan_profile
-from plls_bench.records import export, export_records
+from plls_bench.records import export
+from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR
 from plls_bench.report.load import Runs
 from plls_bench.runner import execute
@@ -97,7 +98,7 @@ def test_a_recorded_policy_is_filmed_and_evaluated_with_an_empty_runs_dir(
     cfg = compose_preset("mountaincar_plls_ppo", runs)  # builds the dataset and V_a, then trains
     run_dir = run_dir_path(runs, "mountaincar_plls_ppo", "default", 0)
     assert execute(cfg, run_dir) == "done"
-    original = make_filmstrip(run_dir, tmp_path / "strip_run", device="cpu")
+    original = film_run(run_dir, tmp_path / "strip_run", device="cpu")
     venv = build_vec_env(cfg, 2, seed=3, reprs=load_trained(run_dir, "cpu").reprs)
     obs = venv.reset()
     venv.close()
@@ -110,7 +111,7 @@ def test_a_recorded_policy_is_filmed_and_evaluated_with_an_empty_runs_dir(
     shutil.rmtree(runs)  # a fresh clone: only the committed records
     assert not list((records / "artifacts").glob("data*")), "datasets are never recorded"
 
-    meta = make_filmstrip(record, tmp_path / "strip_record", device="cpu")
+    meta = film_run(record, tmp_path / "strip_record", device="cpu")
     assert meta["episode_return"] == original["episode_return"] and meta["checkpoint"] == original["checkpoint"]
     assert (tmp_path / "strip_record" / "frames.npz").read_bytes() == (tmp_path / "strip_run" / "frames.npz").read_bytes()
     np.testing.assert_array_equal(load_trained(record, "cpu").act(obs), actions)
@@ -186,12 +187,12 @@ def test_a_recorded_dbc_policy_keeps_its_actor_alone_and_films_the_same(
     runs = tmp_path / "results" / "runs"
     run_dir = run_dir_path(runs, "cheetah_plls_dbc", "default", 0)
     assert execute(compose_preset("cheetah_plls_dbc", runs), run_dir) == "done"
-    original = make_filmstrip(run_dir, tmp_path / "strip_run", device="cpu", max_steps=20)
+    original = film_run(run_dir, tmp_path / "strip_run", device="cpu", max_steps=20)
     export_records(runs)
     record = tmp_path / "results" / "records" / "cheetah_plls_dbc" / KEY
     assert (record / POLICY).stat().st_size < (run_dir / "checkpoints" / "dbc.pt").stat().st_size
     assert not list(record.rglob("dbc.pt")) and not list(record.rglob("chunk_*")), "no optimisers, no replay"
     shutil.rmtree(runs)
-    meta = make_filmstrip(record, tmp_path / "strip_record", device="cpu", max_steps=20)
+    meta = film_run(record, tmp_path / "strip_record", device="cpu", max_steps=20)
     assert meta["checkpoint"] == "dbc_policy.pt" and meta["episode_return"] == original["episode_return"]
     assert (tmp_path / "strip_record" / "frames.npz").read_bytes() == (tmp_path / "strip_run" / "frames.npz").read_bytes()

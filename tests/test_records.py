@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.records import export, export_records, main as records_main, record_files, records_dir_for
+from plls_bench.records import export, records_dir_for
+from plls_bench.records.export import export_records, main as records_main, record_files
 from plls_bench.report.collect import render_all
 from plls_bench.report.load import Runs
 from plls_bench.runs import PARAMS_FILE

@@ -1,5 +1,6 @@
-"""The runner registry: every runner has a typed spec with its own config checks; every preset and
-every filmed preset names a registered runner that fits; the registry imports no simulator."""
+"""The runner registry: every runner has a typed spec, and its own config checks in the config
+layer's table under the same name; every preset and every filmed preset names a registered runner
+that fits; the registry imports no simulator."""
 from __future__ import annotations
 
 import subprocess
@@ -11,6 +12,7 @@ import pytest
 
 from plls_bench.composition import filmstrip_config
 from plls_bench.config import ENV_NAMES, Config, ConfigError
+from plls_bench.config.runners import RUNNER_CHECKS
 from plls_bench.plan import list_presets
 from plls_bench.reproduce import filmed_presets
 from plls_bench.runner_specs import RUNNERS, SPECS, filming_runners, runner_spec
@@ -41,19 +43,21 @@ BAD_FOR_RUNNER: dict[str, tuple[str, str, Callable[[Config], None], str]] = {
 
 def test_every_registered_runner_has_a_bad_config_case() -> None:
     assert set(BAD_FOR_RUNNER) == set(RUNNERS) == {spec.name for spec in SPECS}
+    # config validation asks its own table (the config layer cannot import the registry): same names, same order
+    assert tuple(RUNNER_CHECKS) == tuple(RUNNERS)
     assert sorted(spec.order for spec in SPECS) == list(range(len(SPECS)))  # one plan position each
 
 
 @pytest.mark.parametrize("name", list(BAD_FOR_RUNNER))
 def test_a_runners_own_validation_rejects_a_bad_config_naming_the_key(name: str, tmp_path: Path) -> None:
     preset, override, breaks, key = BAD_FOR_RUNNER[name]
-    spec = runner_spec(name)
+    checks = RUNNER_CHECKS[name]
     cfg = compose_preset(preset, tmp_path)
     assert cfg.runner == name
-    spec.validate(cfg)  # the shipped preset passes its runner's checks
+    checks(cfg)  # the shipped preset passes its runner's checks
     breaks(cfg)
     with pytest.raises(ConfigError) as err:
-        spec.validate(cfg)
+        checks(cfg)
     message = str(err.value)
     assert message.splitlines() == [message] and message.startswith(f"{key}: "), message
     with pytest.raises(ConfigError) as composed:  # and composing it is refused by Config.validate
@@ -72,7 +76,7 @@ def test_an_unregistered_runner_is_refused_naming_the_key(tmp_path: Path) -> Non
 def test_every_preset_runs_a_registered_runner(preset: str, tmp_path: Path) -> None:
     cfg = compose_preset(preset, tmp_path)
     assert cfg.runner in RUNNERS, f"{preset}: runner {cfg.runner!r} is not in plls_bench/runner_specs.py"
-    runner_spec(cfg.runner).validate(cfg)
+    RUNNER_CHECKS[cfg.runner](cfg)
 
 
 def test_filmed_presets_are_declared_for_runners_with_a_policy(tmp_path: Path) -> None:

@@ -2,9 +2,11 @@
 authors' reference code (facebookresearch/deep_bisim4control), plus an exact bisimulation-metric
 oracle for small finite MDPs (:mod:`baselines.dbc.oracle`, used by the tests).
 
-Modules: ``encoder`` (conv/MLP trunk -> Linear -> LayerNorm), ``models`` (actor, twin critic,
-transition model, reward decoder), ``bisim`` (the representation losses), ``agent`` (updates and
-checkpoint state), ``replay`` (frames stored once, stacks rebuilt on sampling), ``oracle``.
+Modules: ``hyperparameters`` (what the agent reads of its settings: a Protocol, so that no config
+schema of the suite is imported here), ``encoder`` (conv/MLP trunk -> Linear -> LayerNorm),
+``models`` (actor, twin critic, transition model, reward decoder), ``bisim`` (the representation
+losses), ``agent`` (updates and checkpoint state), ``replay`` (frames stored once, stacks rebuilt on
+sampling), ``oracle``. Of the suite, only the shared conv trunk (``plls_bench.trunks``) is used.
 """
 from baselines.dbc.agent import Batch, DBCAgent
 from baselines.dbc.replay import FrameReplay

@@ -21,8 +21,8 @@ import torch.nn.functional as F
 
 from baselines.dbc.bisim import bisimulation_loss, reward_loss, transition_loss
 from baselines.dbc.encoder import Encoder, IdentityEncoder, make_trunk, weight_init
+from baselines.dbc.hyperparameters import Hyperparameters
 from baselines.dbc.models import Actor, Critic, TransitionModel, reward_decoder
-from plls_bench.config import DBCConfig
 
 
 @dataclass
@@ -48,7 +48,7 @@ class DBCAgent:
     their optimisers.
     ``precision`` (the run's ``cfg.precision``) applies to the pixel encoder's conv trunk only."""
 
-    def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: DBCConfig,
+    def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: Hyperparameters,
                  device: torch.device | str = "cpu", precision: str = "fp32") -> None:
         self.cfg, self.device = cfg, torch.device(device)
         # bisim: DBC's learned encoder and its losses; identity: state SAC (no representation)

@@ -1,4 +1,4 @@
-"""Filmstrips of trained policies (Figs 11, 19, 22): ``python -m plls_bench.analysis.filmstrip RUN_DIR``.
+"""Filmstrips of trained policies (Figs 11, 19, 22), recorded for ``python -m plls_bench.film RUN_DIR``.
 
 One evaluation episode of the run's last checkpointed policy (deterministic actions, through the
 same V_s / V_a wrappers as in training), seeded as the trial's evaluation episode
@@ -8,14 +8,13 @@ uint8, ``frame_steps`` ``(k,)``) and then ``<out>/filmstrip.json`` (``interval``
 ``episode_return``, ``steps_to_goal``, ``checkpoint``, ...); ``<out>`` is ``RUN_DIR/filmstrip``,
 the run's declared sub-output, written through :class:`plls_bench.runs.RunOutput`: both files
 atomically, then ``done.json`` with the strip's hash (:meth:`FilmstripConfig.output_hash`).
-Which runners hold a policy to film, and how to load it, is their
-:class:`~plls_bench.runner_specs.RunnerSpec`'s ``load_policy``.
+The policy loader is handed in (:func:`make_filmstrip`): which runners hold a policy to film, and
+how to load it, is the runner registry's, which sits above this module; the command
+``python -m plls_bench.film RUN_DIR`` looks it up there.
 """
 from __future__ import annotations
 
-import argparse
 import os
-import sys
 from pathlib import Path
 from typing import Callable
 
@@ -27,16 +26,15 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from plls_bench.artifacts import npz_bytes
 from plls_bench.composition import filmstrip_config
 from plls_bench.config import Config, ConfigError, FilmstripConfig
-from plls_bench.devices import require_device
-from plls_bench.runner_specs import RUNNERS, TrainedPolicy, filming_runners
 from plls_bench.runs import Run, RunOutput, read_json
 from plls_bench.envs import make_env
 from plls_bench.latent import wrap_latent
 from plls_bench.repr.fit import torch_threads
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.seeding import derive_seeds
+from plls_bench.train.policy import PolicyLoader
 
-__all__ = ["FrameRecorder", "filmstrip_config", "main", "make_filmstrip", "policy_loader", "record"]
+__all__ = ["FrameRecorder", "filmstrip_config", "make_filmstrip", "record"]
 
 Act = Callable[[np.ndarray], np.ndarray]  # batched observations (1, *O) -> actions (1, *A)
 
@@ -113,23 +111,13 @@ def record(cfg: Config, act: Act, strip: FilmstripConfig, max_steps: int = 0,
     return recorder
 
 
-# --------------------------------------------------------------------------- trained policies
-def policy_loader(run_dir: Path, runner: str | None) -> Callable[[Path, str], TrainedPolicy]:
-    """How the run's runner spec loads its policy; ConfigError for a runner without one."""
-    spec = RUNNERS.get(runner or "")
-    if spec is None or spec.load_policy is None:
-        raise ConfigError(f"{run_dir}: runner {runner!r} has no policy to film; filmstrips exist for "
-                          f"{', '.join(filming_runners())}")
-    return spec.load_policy
-
-
-def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] | None = None,
+def make_filmstrip(run_dir: Path, load: PolicyLoader, out: Path | None = None, overrides: list[str] | None = None,
                    device: str = "auto", max_steps: int = 0) -> dict:
-    """Record ``run_dir``'s policy and write the filmstrip files; returns filmstrip.json's content."""
+    """Record ``run_dir``'s policy, loaded by ``load`` (its runner's), and write the filmstrip files;
+    returns filmstrip.json's content."""
     record_json = read_json(run_dir / "config.json")
     if record_json is None:
         raise ConfigError(f"{run_dir}: no readable config.json, not a run directory")
-    load = policy_loader(run_dir, record_json["config"].get("runner"))
     strip = filmstrip_config(record_json["config"]["env"]["name"], overrides or [])
     policy = load(run_dir, device)
     rec = record(policy.cfg, policy.act, strip, max_steps, policy.reprs)
@@ -145,33 +133,3 @@ def make_filmstrip(run_dir: Path, out: Path | None = None, overrides: list[str] 
     output.write(strip.output_hash(meta["run_config_hash"], meta["run_status"], max_steps),
                  {"frames.npz": frames, "filmstrip.json": meta})
     return meta
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m plls_bench.analysis.filmstrip", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("run_dir", type=Path, help="a ppo (or dbc) run directory with a checkpoint")
-    parser.add_argument("--out", type=Path, help="where frames.npz and filmstrip.json go (RUN_DIR/filmstrip)")
-    parser.add_argument("--device", default="auto", help="torch device of the policy: cpu | cuda | auto "
-                        "(cuda when present); any device, whatever the run trained on")
-    parser.add_argument("--max-steps", type=int, default=0, help="cap the episode at this many agent steps")
-    parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
-                        help="filmstrip settings, e.g. interval=8 episode=2 (conf/filmstrip/<env>.yaml)")
-    args = parser.parse_args(argv)
-    try:
-        if not args.run_dir.is_dir():
-            raise ConfigError(f"{args.run_dir}: no such run directory")
-        require_device(args.device, "--device")
-        meta = make_filmstrip(args.run_dir, args.out, args.overrides, args.device, args.max_steps)
-    except (ConfigError, FileNotFoundError) as err:
-        print(f"filmstrip: {err}", file=sys.stderr)
-        return 2
-    goal = f", goal after {meta['steps_to_goal']} steps" if meta["steps_to_goal"] is not None else ""
-    print(f"filmstrip: {len(meta['frame_steps'])} frames every {meta['interval']} steps, "
-          f"return {meta['episode_return']:.2f}, {meta['episode_length']} steps{goal} "
-          f"-> {args.out or args.run_dir / 'filmstrip'}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

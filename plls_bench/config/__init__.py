@@ -24,11 +24,11 @@ from plls_bench.config.checks import (ConfigError, Validated, check, check_choic
 from plls_bench.config.learning import (ALGO_NAMES, BUDGET_NAMES, DBC_ENCODERS, FEATURE_EXTRACTORS,
                                         PPO_ACTIVATIONS, TRANSITION_MODELS, AlgoConfig, BudgetConfig, DBCConfig,
                                         PPOConfig)
+from plls_bench.config.runners import RUNNER_CHECKS
 from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_ACTIVATIONS, ActionReprConfig,
                                      EnvConfig, ReprConfig, StateReprConfig)
-from plls_bench.devices import DEVICES
 
-__all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "DBC_ENCODERS", "ENV_NAMES", "FEATURE_EXTRACTORS",
+__all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "DBC_ENCODERS", "DEVICES", "ENV_NAMES", "FEATURE_EXTRACTORS",
            "LATENT_CHOICES", "PPO_ACTIVATIONS", "PRECISIONS", "REPR_KINDS", "STUDY_NAMES", "TRANSITION_MODELS",
            "VAE_ACTIVATIONS",
            "ActionReprConfig", "AlgoConfig", "BudgetConfig", "Config", "ConfigError", "DBCConfig", "EnvConfig",
@@ -37,6 +37,8 @@ __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "DBC_ENCODERS", "ENV_N
 
 # How the conv trunks compute (plls_bench/trunks.py): fp32, or bf16 autocast around the trunks only.
 PRECISIONS = ("fp32", "bf16")
+# Where torch computes; plls_bench.devices resolves the setting (auto: a CUDA GPU when torch sees one).
+DEVICES = ("cpu", "cuda", "auto")
 
 
 # --------------------------------------------------------------------------- root
@@ -62,10 +64,7 @@ class Config(Validated):
     filmstrip: Optional[FilmstripConfig] = None
 
     def validate(self) -> None:
-        from plls_bench.runner_specs import RUNNERS  # lazy: the registry imports this package's modules
-
-        check_choice(self.runner, tuple(RUNNERS), "runner")
-        spec = RUNNERS[self.runner]
+        check_choice(self.runner, tuple(RUNNER_CHECKS), "runner")
         check(self.seed >= 0, "seed", f"must be a non-negative int, got {self.seed!r}")
         check(self.data_seed >= 0, "data_seed", f"must be a non-negative int, got {self.data_seed!r}")
         check_choice(self.device, DEVICES, "device")
@@ -76,7 +75,7 @@ class Config(Validated):
         check("/" not in self.variant, "variant", f"must not contain '/', got {self.variant!r}")
         if self.repr.state.kind == "vae":
             self._validate_state_vae()
-        spec.validate(self)  # the runner's own checks (plls_bench/config/runners.py)
+        RUNNER_CHECKS[self.runner](self)  # the runner's own checks (plls_bench/config/runners.py)
 
     def _validate_state_vae(self) -> None:
         """V_s needs stored single frames, and its decoder must rebuild the frame's exact size."""

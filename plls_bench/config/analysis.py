@@ -7,7 +7,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from plls_bench.config.checks import Validated, check, check_choice, check_positive
-from plls_bench.runs import stable_hash
+from plls_bench.hashing import stable_hash
 
 
 # --------------------------------------------------------------------------- studies
@@ -69,7 +69,7 @@ class FilmstripConfig(Validated):
     """A filmstrip of a trained policy (Figs 11, 19, 22): one evaluation episode, a frame every
     ``interval`` env frames (steps counting action repeat), and its last frame.
 
-    ``python -m plls_bench.analysis.filmstrip RUN_DIR`` composes ``conf/filmstrip/<env>.yaml``.
+    ``python -m plls_bench.film RUN_DIR`` composes ``conf/filmstrip/<env>.yaml``.
     ``presets`` declares which experiment presets ``reproduce`` films (their first trial, once
     done); it says nothing about how a strip is recorded, so it is not in :meth:`settings`.
     """

@@ -66,7 +66,7 @@ class PPOConfig(Validated):
 
     @property
     def steps_per_iteration(self) -> int:
-        """Env steps of one PPO iteration (one rollout and update): ``n_envs * n_steps``."""
+        """Agent steps of one PPO iteration (one rollout and update): ``n_envs * n_steps``."""
         return self.n_envs * self.n_steps
 
     def validate(self) -> None:
@@ -145,6 +145,11 @@ class DBCConfig(Validated):
     sigma_min: float = MISSING
     sigma_max: float = MISSING
     bisim_coef: float = MISSING
+
+    @property
+    def steps_per_iteration(self) -> int:
+        """Agent steps of one DBC iteration: one (act, update, env step); ``train/schedule.py``."""
+        return 1
 
     def validate(self) -> None:
         check_choice(self.encoder, DBC_ENCODERS, "algo.dbc.encoder")

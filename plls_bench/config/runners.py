@@ -1,17 +1,18 @@
-"""Each runner's own config checks, the ``validate`` hook of its :class:`~plls_bench.runner_specs.RunnerSpec`.
+"""Each runner's own config checks, and :data:`RUNNER_CHECKS`: the runners a config may name.
 
-Kept in the config layer (no torch, no simulators): ``Config.validate`` runs them on every composed
-or recorded config. Each raises :class:`ConfigError` with one line naming the offending key.
+Kept in the config layer (no torch, no simulators): ``Config.validate`` looks the runner up in
+:data:`RUNNER_CHECKS` and runs its checks on every composed or recorded config. The runner registry
+(``plls_bench/runner_specs.py``) sits above this layer; a test keeps its names and this table's
+the same. Each check raises :class:`ConfigError` with one line naming the offending key.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Callable, Optional, Protocol
 
+from plls_bench.config.analysis import StudyConfig
 from plls_bench.config.checks import check
-from plls_bench.config.tasks import conv_sizes
-
-if TYPE_CHECKING:  # a type only: importing the root schema here would be circular
-    from plls_bench.config import Config
+from plls_bench.config.learning import AlgoConfig
+from plls_bench.config.tasks import EnvConfig, ReprConfig, conv_sizes
 
 
 def runner_of(algo_name: str, otherwise: str) -> str:
@@ -21,19 +22,29 @@ def runner_of(algo_name: str, otherwise: str) -> str:
     return otherwise if algo_name == "none" else algo_name
 
 
-def validate_collect(cfg: Config) -> None:
+class RunnerConfig(Protocol):
+    """What the checks read of the root ``Config`` (which imports this module, so it is not imported here)."""
+
+    runner: str
+    env: EnvConfig
+    repr: ReprConfig
+    algo: AlgoConfig
+    study: Optional[StudyConfig]
+
+
+def validate_collect(cfg: RunnerConfig) -> None:
     """``collect`` stores random-policy data: it learns no policy."""
     _check_no_algo(cfg)
 
 
-def validate_repr(cfg: Config) -> None:
+def validate_repr(cfg: RunnerConfig) -> None:
     """``repr`` trains V_s and/or V_a (at least one must be a VAE), no policy."""
     _check_no_algo(cfg)
     check("vae" in (cfg.repr.state.kind, cfg.repr.action.kind), "repr",
           "runner=repr needs repr/state=vae or repr/action=vae (both are none)")
 
 
-def validate_study(cfg: Config) -> None:
+def validate_study(cfg: RunnerConfig) -> None:
     """The latent-space studies are MountainCar's and probe V_a; they learn no policy."""
     _check_no_algo(cfg)
     check(cfg.study is not None, "study", "runner=study needs a study section (+study=NAME)")
@@ -41,7 +52,7 @@ def validate_study(cfg: Config) -> None:
     check(cfg.repr.action.kind == "vae", "repr.action.kind", "runner=study needs repr/action=vae")
 
 
-def validate_ppo(cfg: Config) -> None:
+def validate_ppo(cfg: RunnerConfig) -> None:
     """PPO needs its algo section, a trunk that fits what the policy sees, and convs that fit the frames."""
     _check_algo(cfg, "ppo")
     ppo = cfg.algo.ppo
@@ -62,7 +73,7 @@ def validate_ppo(cfg: Config) -> None:
               f"{kernels}, algo.ppo.cnn_stride={ppo.cnn_stride}): spatial sizes {sizes}")
 
 
-def validate_dbc(cfg: Config) -> None:
+def validate_dbc(cfg: RunnerConfig) -> None:
     """DBC needs its algo section and an encoder that leaves at least a 1x1 feature map; state
     SAC (``algo.dbc.encoder=identity``) needs state vectors, not pixels."""
     _check_algo(cfg, "dbc")
@@ -78,12 +89,20 @@ def validate_dbc(cfg: Config) -> None:
               f"algo.dbc.num_layers={dbc.num_layers}): spatial sizes {sizes}")
 
 
-def _check_algo(cfg: Config, algo: str) -> None:
+def _check_algo(cfg: RunnerConfig, algo: str) -> None:
     """A policy-training runner runs the algorithm of the same name (its hyperparameters section)."""
     check(cfg.algo.name == algo, "algo", f"runner={cfg.runner} needs algo={algo}, got algo.name={cfg.algo.name}")
 
 
-def _check_no_algo(cfg: Config) -> None:
+def _check_no_algo(cfg: RunnerConfig) -> None:
     """A runner that learns no policy would leave an algo section unused: refused, not ignored."""
     check(cfg.algo.name == "none", "algo", f"runner={cfg.runner} learns no policy: needs algo=none, "
           f"got algo.name={cfg.algo.name}")
+
+
+Check = Callable[[RunnerConfig], None]
+# Runner name -> its checks, in plan order: the runner names ``Config.validate`` accepts.
+RUNNER_CHECKS: dict[str, Check] = {
+    "collect": validate_collect, "repr": validate_repr, "study": validate_study,
+    "ppo": validate_ppo, "dbc": validate_dbc,
+}

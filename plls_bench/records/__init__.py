@@ -19,8 +19,11 @@ Records live beside the runs dir (``results/records/`` for ``results/runs/``), i
 
 ``python -m plls_bench.records [--runs results/runs] [--records DIR]`` exports
 (:mod:`plls_bench.records.export`); ``reproduce.sh`` does it after a non-smoke profile.
+
+Only the layout is re-exported here: V_s / V_a loading and the learners read the layout and
+restore records, while the export reads their checkpoints, so importing this package must not
+import the export (it would run back up through the learners).
 """
-from plls_bench.records.export import Exported, export_records, export_run, main, record_files
 from plls_bench.records.layout import MAX_FILE_BYTES, records_dir_for
 
-__all__ = ["MAX_FILE_BYTES", "Exported", "export_records", "export_run", "main", "record_files", "records_dir_for"]
+__all__ = ["MAX_FILE_BYTES", "records_dir_for"]

@@ -4,7 +4,8 @@ and figure of the paper, plus confidence intervals and a "paper vs suite" verdic
 Public entry points: :func:`render_all` (render every registry id from a runs dir, returning each
 id's status) and :data:`ENTRIES` / :data:`BY_ID` (the registry).
 """
-from plls_bench.report.collect import IdStatus, ReportError, render_all
+from plls_bench.report.base import IdStatus
+from plls_bench.report.collect import ReportError, render_all
 from plls_bench.report.registry import BY_ID, ENTRIES
 
 __all__ = ["BY_ID", "ENTRIES", "IdStatus", "ReportError", "render_all"]

@@ -1,5 +1,5 @@
 """The types every part of the collector shares: a registry entry, its sources, the options a
-build receives, and what a build returns."""
+build receives, what a build returns, and the status of a rendered id (index.json, the README)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -64,3 +64,20 @@ class Entry:
     @property
     def experiments(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys([*(s.experiment for s in self.sources), *self.references]))
+
+
+@dataclass
+class IdStatus:
+    """What rendering one registry id gave: a row of ``index.json`` and a section of the README."""
+
+    id: str
+    ref: str
+    title: str
+    kind: str
+    status: str
+    experiments: list[str]
+    reads: str
+    files: list[str] = field(default_factory=list)  # relative to the output dir
+    trials: dict[str, int] = field(default_factory=dict)
+    gaps: list[str] = field(default_factory=list)
+    error: str | None = None

@@ -6,14 +6,14 @@ from __future__ import annotations
 import logging
 import struct
 import traceback
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Iterable
 
 import numpy as np
 
 from plls_bench.progress import progress_bar
-from plls_bench.report.base import Entry, Options, Output
+from plls_bench.report.base import Entry, IdStatus, Options, Output
 from plls_bench.report.claims import read_claims
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI, save_figure
@@ -29,21 +29,6 @@ PAPER_DIR = Path(__file__).resolve().parents[2] / "results" / "paper"
 
 class ReportError(ValueError):
     """Bad collector input (paths, ids, axis); raised before anything is read or written."""
-
-
-@dataclass
-class IdStatus:
-    id: str
-    ref: str
-    title: str
-    kind: str
-    status: str
-    experiments: list[str]
-    reads: str
-    files: list[str] = field(default_factory=list)  # relative to the output dir
-    trials: dict[str, int] = field(default_factory=dict)
-    gaps: list[str] = field(default_factory=list)
-    error: str | None = None
 
 
 def check_inputs(runs_dir: Path, out_dir: Path, only: Iterable[str] | None, x_axis: str, paper_dir: Path,

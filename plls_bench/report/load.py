@@ -23,8 +23,9 @@ import numpy as np
 
 from plls_bench.config.learning import BUDGET_NAMES
 from plls_bench.config.tasks import ENV_BACKENDS
+from plls_bench.hashing import stable_hash
 from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
-                             read_json, scan_jsonl, stable_hash, variant_name)
+                             read_json, scan_jsonl, variant_name)
 
 DEFAULT_VARIANT = "default"
 # A profile's own runs of a preset live in ``default``, or in ``env.backend=<b>`` when the profile

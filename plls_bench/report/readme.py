@@ -6,15 +6,13 @@ from __future__ import annotations
 import time
 from collections import Counter
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from plls_bench.config import BUDGET_NAMES
 from plls_bench.provenance import git_state
+from plls_bench.report.base import IdStatus
 from plls_bench.report.tables import plural
 from plls_bench.runs import atomic_write_bytes, iter_run_dirs, read_json
-
-if TYPE_CHECKING:
-    from plls_bench.report.collect import IdStatus
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 STATUSES = ("ok", "partial", "empty", "error")  # partial = drawn, with gaps; empty = nothing to draw
@@ -44,36 +42,36 @@ def _runs_summary(runs_dir: Path, records_dir: Path | None = None) -> list[str]:
             + ", ".join(f"`{c}` ({plural(n, 'run')})" for c, n in commits.most_common())]
 
 
-def _files(status: "IdStatus", *exts: str) -> str:
+def _files(status: IdStatus, *exts: str) -> str:
     links = [f"[{Path(f).suffix[1:].upper()}]({f})" for f in status.files if Path(f).suffix[1:] in exts]
     return " · ".join(links)
 
 
-def _gaps(status: "IdStatus") -> list[str]:
+def _gaps(status: IdStatus) -> list[str]:
     lines = [f"- gap: {g}" for g in status.gaps]
     return lines + ([f"- **error**: {status.error}"] if status.error else [])
 
 
-def _header(status: "IdStatus") -> list[str]:
+def _header(status: IdStatus) -> list[str]:
     trials = ", ".join(f"{k}: {v}" for k, v in status.trials.items()) or "none"
     return [f"### {status.ref}: {status.title}", "",
             f"Status **{status.status}** · shown: {trials} · from `{'`, `'.join(status.experiments)}` "
             f"(variant `default`), reading {status.reads}", ""]
 
 
-def _table_section(out_dir: Path, status: "IdStatus") -> list[str]:
+def _table_section(out_dir: Path, status: IdStatus) -> list[str]:
     md = out_dir / "tables" / f"{status.id}.md"
     body = md.read_text().strip() if status.status != "error" and md.is_file() else "*not rendered*"
     return [*_header(status), body, "", f"Files: {_files(status, 'md', 'tex', 'csv')}", "", *_gaps(status), ""]
 
 
-def _figure_section(status: "IdStatus") -> list[str]:
+def _figure_section(status: IdStatus) -> list[str]:
     png = next((f for f in status.files if f.endswith(".png")), None)
     image = f"![{status.ref}]({png})" if png else "*not rendered*"
     return [*_header(status), image, "", f"Files: {_files(status, 'png', 'pdf', 'csv')}", "", *_gaps(status), ""]
 
 
-def build_readme(out_dir: Path, runs_dir: Path, index: list["IdStatus"], meta: dict[str, Any]) -> str:
+def build_readme(out_dir: Path, runs_dir: Path, index: list[IdStatus], meta: dict[str, Any]) -> str:
     git = git_state()
     counts = Counter(s.status for s in index)
     lines = ["# Results", "",
@@ -102,5 +100,5 @@ def build_readme(out_dir: Path, runs_dir: Path, index: list["IdStatus"], meta: d
     return "\n".join(lines)
 
 
-def write_readme(out_dir: Path, runs_dir: Path, index: list["IdStatus"], meta: dict[str, Any]) -> None:
+def write_readme(out_dir: Path, runs_dir: Path, index: list[IdStatus], meta: dict[str, Any]) -> None:
     atomic_write_bytes(out_dir / "README.md", build_readme(out_dir, runs_dir, index, meta).encode())

@@ -7,10 +7,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from plls_bench.metrics import EvalRow, iteration_label, parallel_envs
+from plls_bench.metrics import EvalRow, parallel_envs
 from plls_bench.report.load import Experiment, Runs, Trial
-from plls_bench.runs import STATUS_DONE
 from plls_bench.report.stats import CURVE_RESAMPLES, align, bootstrap_ci, complete, convergence_index
+from plls_bench.runner_specs import iteration_label
+from plls_bench.runs import STATUS_DONE
 
 X_AXES = ("iteration", "env_steps", "wall_s", "env_steps_per_env")
 DEFAULT_X_AXIS = "iteration"  # the paper's axis, PPO iterations (docs/decisions.md#d1)

@@ -24,6 +24,7 @@ from plls_bench.seeding import quiet_rng
 from plls_bench.train.checkpoint import latest, missing_checkpoint, normalization
 from plls_bench.train.networks import ChannelsLastPolicy, policy_kwargs
 from plls_bench.train.normalize import ObsMap, frozen_obs_map
+from plls_bench.train.policy import TrainedPolicy
 
 
 def build_vec_env(cfg: Config, n_envs: int, seed: int, reprs: Representations | None = None) -> VecEnv:
@@ -107,6 +108,15 @@ def load_trained(run_dir: str | Path, device: str = "auto") -> Trained:
     model = load_model(found[0], resolve_device(device))
     reprs = load_representations(replace(cfg, device=device))  # beside the policy, not on the recorded device
     return Trained(cfg, model, frozen_obs_map(normalization(Path(run_dir))), reprs)
+
+
+def trained_policy(run_dir: Path, device: str) -> TrainedPolicy:
+    """The run's policy as :func:`load_trained` gives it, deterministic, named by its checkpoint."""
+    trained = load_trained(run_dir, device)
+    found = latest(run_dir)
+    assert found is not None  # load_trained raised otherwise
+    # V_s / V_a join the policy on the device it was loaded to, not the recorded one
+    return TrainedPolicy(replace(trained.cfg, device=device), trained.act, found[0].name, trained.reprs)
 
 
 def sb3_metrics(values: dict[str, Any]) -> dict[str, float]:

@@ -6,8 +6,9 @@ follows the reference's train.py: ``init_steps`` uniform random agent steps, the
 agent step (``init_steps`` of them at once at the first learning step), the update before the
 env step. :class:`DBCTrainer` runs in the training skeleton (:mod:`plls_bench.train.loop`); one
 iteration is one agent step. Every ``budget.eval_every_env_steps`` env steps (frames, counting
-action repeat) the deterministic policy is evaluated on ``budget.eval_episodes`` fresh episodes
-of a separately seeded env, then the run is checkpointed (see :mod:`plls_bench.train.dbc_state`).
+action repeat; :mod:`plls_bench.train.schedule`) the deterministic policy is evaluated on
+``budget.eval_episodes`` fresh episodes of a separately seeded env, then the run is checkpointed
+(see :mod:`plls_bench.train.dbc_state`).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import logging
 import math
 import time
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,8 +34,10 @@ from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds, derived_seed
 from plls_bench.train import loop
 from plls_bench.train.dbc_accounting import write_accounting
-from plls_bench.train.dbc_state import load_checkpoint, save_checkpoint
+from plls_bench.train.dbc_state import CHECKPOINT, POLICY, load_checkpoint, load_trained_agent, save_checkpoint
 from plls_bench.train.loop import Progress
+from plls_bench.train.policy import TrainedPolicy
+from plls_bench.train.schedule import Schedule
 
 log = logging.getLogger(__name__)
 
@@ -88,9 +92,8 @@ class DBCTrainer:
         self.reprs = reprs
         self.cfg, self.run, self.dbc = cfg, run, cfg.algo.dbc
         self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
-        self.iterations = math.ceil(cfg.budget.train_env_steps / cfg.env.action_repeat)
-        budget = cfg.budget
-        self.eval_points = [*range(0, budget.train_env_steps, budget.eval_every_env_steps), budget.train_env_steps]
+        self.schedule = Schedule.of(cfg)
+        self.iterations = self.schedule.iterations
 
     def setup(self) -> None:
         cfg = self.cfg
@@ -158,9 +161,7 @@ class DBCTrainer:
         return next_obs, float(reward[0]), bool(done[0])
 
     def eval_due(self, at: Progress) -> bool:
-        """Evaluations happen at 0, every, 2 * every, ... env steps and at the end of training."""
-        n = at.evaluations
-        return n < len(self.eval_points) and at.env_steps >= self.eval_points[n]
+        return self.schedule.eval_at(at.iteration)
 
     def evaluate(self, at: Progress) -> EvalRow:
         """The deterministic policy on fresh episodes of the evaluation env, seeded per evaluation."""
@@ -192,3 +193,11 @@ class DBCTrainer:
 def run(cfg: Config, run: Run) -> None:
     """Runner ``dbc`` (see module docstring)."""
     loop.train(DBCTrainer(cfg, run), run, cfg)
+
+
+def trained_policy(run_dir: Path, device: str) -> TrainedPolicy:
+    """The run's deterministic actor, from its checkpoint or, in a record, from the actor's weights alone."""
+    cfg, agent, space, reprs = load_trained_agent(run_dir, device)
+    used = CHECKPOINT if (run_dir / CHECKPOINT).exists() else POLICY  # a record keeps the actor alone
+    return TrainedPolicy(cfg, lambda obs: to_env_action(agent.act(obs, deterministic=True), space),
+                         Path(used).name, reprs)

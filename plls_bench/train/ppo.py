@@ -8,9 +8,8 @@ episodes in flight at the kill are started again.
 """
 from __future__ import annotations
 
-import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import torch
@@ -31,28 +30,9 @@ from plls_bench.seeding import derive_seeds, sub_seed
 from plls_bench.train import checkpoint, loop, normalize
 from plls_bench.train.agent import accounting, build_vec_env, load_model, new_model, sb3_metrics
 from plls_bench.train.loop import Progress
+from plls_bench.train.schedule import Schedule
 
 _EVAL_SAMPLING = 1  # sub-stream of the eval seed for stochastic test actions
-
-
-@dataclass(frozen=True)
-class Plan:
-    """The budget in PPO iterations (``budget.*_env_steps`` are env steps, counting action repeat)."""
-
-    iterations: int          # PPO iterations to run
-    eval_every: int          # evaluate every this many iterations (and at 0 and the last)
-    env_steps_per_iteration: int
-
-    @classmethod
-    def of(cls, cfg: Config) -> Plan:
-        assert cfg.algo.ppo is not None
-        per_iteration = cfg.algo.ppo.steps_per_iteration * cfg.env.action_repeat
-        return cls(iterations=math.ceil(cfg.budget.train_env_steps / per_iteration),
-                   eval_every=max(1, cfg.budget.eval_every_env_steps // per_iteration),
-                   env_steps_per_iteration=per_iteration)
-
-    def eval_at(self, iteration: int) -> bool:
-        return iteration % self.eval_every == 0 or iteration == self.iterations
 
 
 class EpisodeStats(BaseCallback):
@@ -93,9 +73,9 @@ class PPOTrainer:
 
     def __init__(self, cfg: Config, run: Run) -> None:
         assert cfg.algo.ppo is not None
-        self.cfg, self.run, self.ppo, self.plan = cfg, run, cfg.algo.ppo, Plan.of(cfg)
+        self.cfg, self.run, self.ppo, self.schedule = cfg, run, cfg.algo.ppo, Schedule.of(cfg)
         self.seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
-        self.iterations = self.plan.iterations
+        self.iterations = self.schedule.iterations
 
     def setup(self) -> None:
         cfg, ppo = self.cfg, self.ppo
@@ -110,7 +90,7 @@ class PPOTrainer:
         self.model, saved, fresh = _start_or_resume(self.cfg, self.run, self.train_env, self.seeds.train)
         if fresh:
             return None
-        return replace(saved, evaluations=sum(self.plan.eval_at(i) for i in range(saved.iteration + 1)))
+        return replace(saved, evaluations=self.schedule.evaluations_through(saved.iteration))
 
     def start(self, at: Progress, resumed: bool) -> None:
         self.model.set_logger(configure(str(self.run.path / "sb3" / f"start={at.iteration:07d}"),
@@ -120,19 +100,19 @@ class PPOTrainer:
 
     def train_iteration(self, at: Progress) -> tuple[Progress, dict[str, Any]]:
         start = time.perf_counter()
-        self.model.learn(self.plan.env_steps_per_iteration // self.cfg.env.action_repeat, callback=self.stats,
+        self.model.learn(self.schedule.env_steps_per_iteration // self.cfg.env.action_repeat, callback=self.stats,
                          log_interval=None, reset_num_timesteps=False)
         steps = int(self.model.num_timesteps)
         done = replace(at, iteration=at.iteration + 1, agent_steps=steps,
                        env_steps=steps * self.cfg.env.action_repeat)
         seconds = time.perf_counter() - start
         return done, {**sb3_metrics(self.model.logger.name_to_value), **self.stats.summary(),
-                      "perf/sps": self.plan.env_steps_per_iteration / seconds,
+                      "perf/sps": self.schedule.env_steps_per_iteration / seconds,
                       "perf/rollout_s": self.stats.rollout_end - start,
                       "perf/update_s": time.perf_counter() - self.stats.rollout_end}
 
     def eval_due(self, at: Progress) -> bool:
-        return self.plan.eval_at(at.iteration)
+        return self.schedule.eval_at(at.iteration)
 
     def evaluate(self, at: Progress) -> EvalRow:
         """Deterministic and stochastic test episodes (the same seeds at every evaluation); the

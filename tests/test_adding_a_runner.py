@@ -1,0 +1,66 @@
+"""Adding a runner is one registry entry (and its config checks, the config layer's row): a toy
+runner registered for the test goes through the dry run's plan and costs, the bench's rate keys
+and measurement lookup, and the collector's per-runner lookups, with no other table to extend."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+
+from bench.throughput import MEASURES, rate_keys as bench_rate_keys
+from plls_bench import runner_specs
+from plls_bench.config.runners import RUNNER_CHECKS, validate_ppo
+from plls_bench.plan import plan_profile, rate_keys
+from plls_bench.report.load import Runs
+from plls_bench.report.returns import load_curves, x_label
+from plls_bench.runner_specs import RunnerSpec, runner_spec
+from plls_bench.train.schedule import Schedule
+from tests.synthetic_runs import finish, make_run, write_eval
+
+PRESET, TOY = "mountaincar_ppo", ("runner=toy",)  # a toy runner learning with the preset's PPO section
+
+
+@pytest.fixture
+def toy(monkeypatch: pytest.MonkeyPatch) -> Iterator[RunnerSpec]:
+    """A runner that trains a policy, timed like PPO, registered only for the test."""
+    spec = RunnerSpec("toy", lambda: lambda cfg, run: None, order=len(runner_specs.SPECS),
+                      measure="ppo_iterations", trains_policy=True,
+                      iteration_unit="toy iteration ({} envs)", iteration_keys=("algo.ppo.n_envs",))
+    monkeypatch.setattr(runner_specs, "SPECS", (*runner_specs.SPECS, spec))
+    monkeypatch.setitem(runner_specs.RUNNERS, "toy", spec)
+    monkeypatch.setitem(RUNNER_CHECKS, "toy", validate_ppo)  # the config layer's row
+    yield spec
+
+
+def test_the_dry_run_plans_and_costs_the_toy_runner(toy: RunnerSpec, runs_dir: Path) -> None:
+    rates = {f"train/{PRESET}": 1000.0, f"eval/{PRESET}": 5000.0}
+    plan = plan_profile("quick", str(runs_dir), only=[PRESET], rates=rates, count_records=False, overrides=TOY)[0]
+    assert plan.runner == "toy" and runner_spec(plan.runner) is toy and not plan.missing_rates
+    cfg = plan.trials[0].cfg
+    assert rate_keys(cfg) == {"train": f"train/{PRESET}", "eval": f"eval/{PRESET}"}
+    schedule = Schedule.of(cfg)  # its evaluation schedule: the trainers' one, from its algo section
+    evals = schedule.evaluations * cfg.budget.eval_episodes * cfg.env.max_episode_steps
+    per_trial = cfg.budget.train_env_steps / 1000.0 + evals / 5000.0
+    assert plan.env_steps_per_trial == cfg.budget.train_env_steps
+    assert plan.seconds == pytest.approx(len(plan.trials) * per_trial)
+
+
+def test_the_bench_finds_the_toy_runners_rate_keys_and_measurement(toy: RunnerSpec, runs_dir: Path) -> None:
+    cfg = plan_profile("quick", str(runs_dir), only=[PRESET], rates={}, overrides=TOY)[0].trials[0].cfg
+    assert bench_rate_keys(cfg) == [f"train/{PRESET}", f"eval/{PRESET}"]
+    measurement = MEASURES[toy.measure]  # looked up, never timed here
+    assert measurement.kinds == ("train", "eval") and measurement.env_bound
+
+
+def test_the_collector_reads_the_toy_runners_curves_and_iteration_unit(toy: RunnerSpec, runs_dir: Path) -> None:
+    for seed in range(3):  # the quick budget's trials: no gap
+        run, cfg = make_run(runs_dir, PRESET, seed, "quick", *TOY)
+        write_eval(run, cfg, [0, 5, 10], [[1.0], [2.0], [3.0 + seed]])
+        finish(run, cfg)
+    runs = Runs(runs_dir)
+    exp = runs.experiment(PRESET)
+    assert exp.cfg("runner") == "toy"
+    assert x_label(exp, "iteration") == f"toy iteration ({cfg.algo.ppo.n_envs} envs)"
+    curves = load_curves(runs, exp, "toy")
+    assert curves.n == 3 and list(curves.grid) == [0, 5, 10] and not runs.gaps

@@ -1,0 +1,51 @@
+"""The one training schedule (``train/schedule.py``): PPO and DBC run it, and the dry run costs
+the evaluations it holds."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from plls_bench.plan import plan_profile
+from plls_bench.runs import Run
+from plls_bench.train.dbc import DBCTrainer
+from plls_bench.train.loop import Progress
+from plls_bench.train.schedule import Schedule
+from tests.conftest import compose_preset
+
+
+@pytest.mark.parametrize(("iterations", "every"), [(10, 3), (12, 4), (1, 5), (7, 1)])
+def test_evaluations_at_zero_every_interval_and_the_last_iteration(iterations: int, every: int) -> None:
+    schedule = Schedule(iterations, every, env_steps_per_iteration=1)
+    due = [i for i in range(iterations + 1) if schedule.eval_at(i)]
+    assert due[0] == 0 and due[-1] == iterations and all(i % every == 0 for i in due[:-1])
+    assert [schedule.evaluations_through(i) for i in range(iterations + 1)] == \
+        [sum(schedule.eval_at(j) for j in range(i + 1)) for i in range(iterations + 1)]
+    assert schedule.evaluations == len(due)
+
+
+def test_dbc_iterations_are_agent_steps_and_it_evaluates_on_the_schedule(runs_dir: Path) -> None:
+    cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
+    schedule = Schedule.of(cfg)
+    per_eval = cfg.budget.eval_every_env_steps // cfg.env.action_repeat
+    assert schedule.env_steps_per_iteration == cfg.env.action_repeat and schedule.eval_every == per_eval
+    assert schedule.iterations == cfg.budget.train_env_steps // cfg.env.action_repeat
+    trainer = DBCTrainer(cfg, Run(runs_dir / "unused"))
+    assert trainer.iterations == schedule.iterations
+    assert [i for i in range(schedule.iterations + 1) if trainer.eval_due(Progress(iteration=i))] == \
+        [i for i in range(schedule.iterations + 1) if schedule.eval_at(i)]
+
+
+def test_an_interval_is_rounded_down_to_whole_iterations(runs_dir: Path) -> None:
+    cfg = compose_preset("cheetah_dbc", runs_dir, "env.action_repeat=4", "budget.eval_every_env_steps=10")
+    assert Schedule.of(cfg).eval_every == 2  # 10 frames: every 2 agent steps of 4 frames
+
+
+def test_the_dry_run_costs_the_evaluations_of_the_schedule(runs_dir: Path) -> None:
+    rates = {"train/cheetah_dbc": 1.0, "eval/cheetah_dbc": 1.0}
+    plan = plan_profile("quick", str(runs_dir), only=["cheetah_dbc"], rates=rates, count_records=False)[0]
+    cfg = plan.trials[0].cfg
+    budget, episode = cfg.budget, cfg.env.max_episode_steps
+    assert budget.eval_max_steps == 0 or budget.eval_max_steps * cfg.env.action_repeat == episode
+    per_trial = budget.train_env_steps + Schedule.of(cfg).evaluations * budget.eval_episodes * episode
+    assert plan.seconds == pytest.approx(len(plan.trials) * per_trial)
