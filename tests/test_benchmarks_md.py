@@ -9,10 +9,10 @@ from bench.benchmarks_md import finish_section
 def test_a_section_is_assembled_and_replaced_in_place(tmp_path: Path) -> None:
     path = tmp_path / "BENCHMARKS.md"
     path.write_text("# Benchmarks\n\nhand-written text\n")
-    args = ("speed", "Speed (`bench/x.py`)", "nice -n 10 python bench/x.py", "How it was measured.",
+    args = ("speed", "Speed (toy bench)", "nice -n 10 python toy_bench", "How it was measured.",
             ["setting", "steps/s"])
     first = finish_section(*args, ["| a | **1** |"], notes=["A note."], path=path)
-    assert first.splitlines()[:3] == ["## Speed (`bench/x.py`)", "", "Command: `nice -n 10 python bench/x.py`  "]
+    assert first.splitlines()[:3] == ["## Speed (toy bench)", "", "Command: `nice -n 10 python toy_bench`  "]
     assert "| setting | steps/s |\n|---|---|\n| a | **1** |\n\nA note." in first
     assert "cores, load average" in first.splitlines()[3]
     finish_section(*args, ["| b | **2** |"], path=path)
