@@ -10,6 +10,7 @@ from pathlib import Path
 import torch
 
 from plls_bench.devices import cpu_model
+from plls_bench.runs import atomic_write_bytes
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -23,7 +24,9 @@ def machine() -> str:
 
 def announce(script: str, argv: list[str] | None) -> str:
     """Print and return the command line that reproduces this benchmark, and the machine before it."""
-    command = f"nice -n 10 .venv/bin/python bench/{script} " + shlex.join(sys.argv[1:] if argv is None else argv)
+    niceness = os.nice(0)  # the priority it really ran at: timings beside other load depend on it
+    prefix = f"nice -n {niceness} " if niceness else ""
+    command = f"{prefix}.venv/bin/python bench/{script} " + shlex.join(sys.argv[1:] if argv is None else argv)
     print(f"command: {command}\nmachine (before): {machine()}", flush=True)
     return command
 
@@ -37,7 +40,7 @@ def write_section(section: str, text: str, path: Path = REPO / "BENCHMARKS.md") 
         new = old[:old.index(begin)] + block + old[old.index(end) + len(end):]
     else:
         new = old.rstrip() + "\n\n" + block + "\n"
-    path.write_text(new if new.endswith("\n") else new + "\n")
+    atomic_write_bytes(path, (new if new.endswith("\n") else new + "\n").encode())
 
 
 def finish_section(section: str, title: str, command: str, method: str, header: list[str],

@@ -3,7 +3,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.benchmarks_md import finish_section
+import pytest
+
+from bench import benchmarks_md
+from bench.benchmarks_md import announce, finish_section
 
 
 def test_a_section_is_assembled_and_replaced_in_place(tmp_path: Path) -> None:
@@ -25,3 +28,10 @@ def test_no_write_leaves_the_file_alone(tmp_path: Path) -> None:
     path = tmp_path / "BENCHMARKS.md"
     finish_section("s", "T", "cmd", "m", ["h"], ["| 1 |"], write=False, path=path)
     assert not path.exists()
+
+
+@pytest.mark.parametrize("niceness, prefix", [(0, ".venv/bin/python"), (7, "nice -n 7 .venv/bin/python")])
+def test_the_command_names_the_priority_it_ran_at(monkeypatch: pytest.MonkeyPatch, niceness: int,
+                                                  prefix: str) -> None:
+    monkeypatch.setattr(benchmarks_md.os, "nice", lambda increment: niceness)
+    assert announce("toy.py", ["--rounds", "2"]) == f"{prefix} bench/toy.py --rounds 2"
