@@ -16,6 +16,7 @@ config checks (README, "Adding a runner").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
@@ -25,6 +26,10 @@ if TYPE_CHECKING:  # types only: the config root and the run dir must not be imp
     from plls_bench.train.policy import PolicyLoader
 
 RunFn = Callable[["Config", "Run"], None]
+# What a committed record carries of a run (``records/export.py``):
+PolicyFiles = Callable[[Path], "dict[str, Path | bytes]"]  # run dir -> the files that rebuild its last policy
+ResumeFiles = Callable[[Path], "tuple[list[str], int] | None"]  # run dir -> (its last checkpoint's files,
+#                                                                  commit file last; its iteration) or None
 
 
 @dataclass(frozen=True)
@@ -45,6 +50,12 @@ class RunnerSpec:
     # recorded config's ``iteration_keys``. How many env steps it is: ``train/schedule.py``.
     iteration_unit: str = "iteration"
     iteration_keys: tuple[str, ...] = ()
+    # What its committed records carry: its policy's files (``load_policy_files``; None: none), and
+    # for an unfinished run the checkpoint that resumes it (``load_resume_files``; None: unfinished
+    # runs are not carried, ``not_carried`` says why).
+    load_policy_files: Callable[[], PolicyFiles] | None = None
+    load_resume_files: Callable[[], ResumeFiles] | None = None
+    not_carried: str = "no checkpoint to carry"
 
     @property
     def films(self) -> bool:
@@ -91,6 +102,21 @@ def _dbc_policy() -> PolicyLoader:
     return trained_policy
 
 
+def _ppo_checkpoint() -> ResumeFiles:
+    from plls_bench.train.checkpoint import committed_files
+    return committed_files
+
+
+def _ppo_policy_files() -> PolicyFiles:
+    from plls_bench.train.checkpoint import policy_files
+    return policy_files
+
+
+def _dbc_policy_files() -> PolicyFiles:
+    from plls_bench.train.dbc_state import policy_files
+    return policy_files
+
+
 # --------------------------------------------------------------------------- the registry
 SPECS: tuple[RunnerSpec, ...] = (
     RunnerSpec("collect", _collect, order=0, measure="collection", uses_dataset=True),
@@ -99,10 +125,12 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one PPO iteration: a rollout of n_envs x n_steps vector-env steps and its update
     RunnerSpec("ppo", _ppo, order=3, measure="ppo_iterations", trains_policy=True, load_policy=_ppo_policy,
                iteration_unit="PPO iteration ({} envs x {} steps)",
-               iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps")),
+               iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps"),
+               load_policy_files=_ppo_policy_files, load_resume_files=_ppo_checkpoint),
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
-               iteration_unit="iteration (agent steps)"),
+               iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
+               not_carried="DBC replay too large to carry"),  # ~21 kB per transition (BENCHMARKS.md)
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

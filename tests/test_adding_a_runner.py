@@ -1,6 +1,7 @@
 """Adding a runner is one registry entry (and its config checks, the config layer's row): a toy
 runner registered for the test goes through the dry run's plan and costs, the bench's rate keys
-and measurement lookup, and the collector's per-runner lookups, with no other table to extend."""
+and measurement lookup, the collector's per-runner lookups and the records' export, with no other
+table to extend."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,6 +13,8 @@ from bench.throughput import MEASURES, rate_keys as bench_rate_keys
 from plls_bench import runner_specs
 from plls_bench.config.runners import RUNNER_CHECKS, validate_ppo
 from plls_bench.plan import plan_profile, rate_keys
+from plls_bench.records.export import export_records
+from plls_bench.records.layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.report.load import Runs
 from plls_bench.report.returns import load_curves, x_label
 from plls_bench.runner_specs import RunnerSpec, runner_spec
@@ -26,11 +29,18 @@ def toy(monkeypatch: pytest.MonkeyPatch) -> Iterator[RunnerSpec]:
     """A runner that trains a policy, timed like PPO, registered only for the test."""
     spec = RunnerSpec("toy", lambda: lambda cfg, run: None, order=len(runner_specs.SPECS),
                       measure="ppo_iterations", trains_policy=True,
-                      iteration_unit="toy iteration ({} envs)", iteration_keys=("algo.ppo.n_envs",))
+                      iteration_unit="toy iteration ({} envs)", iteration_keys=("algo.ppo.n_envs",),
+                      load_policy_files=lambda: lambda run_dir: {"toy/policy.bin": b"weights"},
+                      load_resume_files=lambda: _toy_resume_files)
     monkeypatch.setattr(runner_specs, "SPECS", (*runner_specs.SPECS, spec))
     monkeypatch.setitem(runner_specs.RUNNERS, "toy", spec)
     monkeypatch.setitem(RUNNER_CHECKS, "toy", validate_ppo)  # the config layer's row
     yield spec
+
+
+def _toy_resume_files(run_dir: Path) -> tuple[list[str], int] | None:
+    """The toy's checkpoint: one file, at iteration 4, when it has been written."""
+    return (["toy/state.bin"], 4) if (run_dir / "toy" / "state.bin").exists() else None
 
 
 def test_the_dry_run_plans_and_costs_the_toy_runner(toy: RunnerSpec, runs_dir: Path) -> None:
@@ -64,3 +74,19 @@ def test_the_collector_reads_the_toy_runners_curves_and_iteration_unit(toy: Runn
     assert x_label(exp, "iteration") == f"toy iteration ({cfg.algo.ppo.n_envs} envs)"
     curves = load_curves(runs, exp, "toy")
     assert curves.n == 3 and list(curves.grid) == [0, 5, 10] and not runs.gaps
+
+
+def test_records_carry_the_toy_runners_policy_and_resume_files(toy: RunnerSpec, runs_dir: Path,
+                                                                tmp_path: Path) -> None:
+    finished, cfg = make_run(runs_dir, PRESET, 0, "quick", *TOY)
+    write_eval(finished, cfg, [0, 5], [[1.0], [2.0]])
+    finish(finished, cfg)
+    unfinished, _ = make_run(runs_dir, PRESET, 1, "quick", *TOY)
+    unfinished.write_bytes("toy/state.bin", b"state")
+    records = tmp_path / "records"
+    done = export_records(runs_dir, records)
+    assert len(done.written) == 1 and len(done.partial) == 1, done.summary()
+    finished_key, partial_key = (str(r.path.relative_to(runs_dir)) for r in (finished, unfinished))
+    assert (records / finished_key / "toy" / "policy.bin").read_bytes() == b"weights"
+    assert (records / PARTIAL_DIR / partial_key / "toy" / "state.bin").read_bytes() == b"state"
+    assert (records / PARTIAL_DIR / partial_key / PARTIAL_MARKER).is_file()

@@ -34,4 +34,4 @@ def test_no_write_leaves_the_file_alone(tmp_path: Path) -> None:
 def test_the_command_names_the_priority_it_ran_at(monkeypatch: pytest.MonkeyPatch, niceness: int,
                                                   prefix: str) -> None:
     monkeypatch.setattr(benchmarks_md.os, "nice", lambda increment: niceness)
-    assert announce("toy.py", ["--rounds", "2"]) == f"{prefix} bench/toy.py --rounds 2"
+    assert announce("ppo_layouts.py", ["--iterations", "2"]) == f"{prefix} bench/ppo_layouts.py --iterations 2"

@@ -1,4 +1,4 @@
-"""Export runs into the committed records: finished runs, unfinished PPO runs (partial records)
+"""Export runs into the committed records: finished runs, unfinished runs (partial records)
 and the V_s / V_a artifacts they use. ``python -m plls_bench.records`` runs :func:`main`."""
 from __future__ import annotations
 
@@ -13,11 +13,11 @@ from typing import Any
 
 from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, PARTIAL_DIR, PARTIAL_MARKER,
                                        REPR_KINDS, records_dir_for)
+from plls_bench.runner_specs import RUNNERS
 from plls_bench.runs import STATUS_DONE, iter_run_dirs, read_json
 
 RECORD_GLOBS = ("config.json", "status.json", "provenance.json", "metrics/*.jsonl", "metrics/*.json",
                 "samples/*.npz", "studies/*.npz", "filmstrip/filmstrip.json", "filmstrip/frames.npz")
-DBC_PARTIAL = "DBC replay too large to carry"
 Content = Path | bytes  # a file of the run, or bytes made from it
 
 
@@ -42,19 +42,10 @@ def record_files(run_dir: Path) -> list[Path]:
 
 
 def policy_files(run_dir: Path, runner: str | None) -> dict[str, Content]:
-    """The files that rebuild the run's last checkpointed policy: PPO's files named by
-    ``checkpoints/latest.json``; DBC's actor weights alone (``dbc_state.POLICY``, no replay)."""
-    if runner == "ppo":
-        from plls_bench.train.checkpoint import committed_files
-
-        found = committed_files(run_dir)
-        return {} if found is None else {rel: run_dir / rel for rel in found[0]}
-    if runner == "dbc":
-        from plls_bench.train.dbc_state import POLICY, policy_bytes
-
-        data = policy_bytes(run_dir)
-        return {} if data is None else {POLICY: data}
-    return {}
+    """The files that rebuild the run's last checkpointed policy, as its runner declares them
+    (``RunnerSpec.load_policy_files``; none for a runner that declares none, or an unknown one)."""
+    spec = RUNNERS.get(runner or "")
+    return {} if spec is None or spec.load_policy_files is None else dict(spec.load_policy_files()(run_dir))
 
 
 def _size(content: Content) -> int:
@@ -100,13 +91,13 @@ def export_run(run_dir: Path, target: Path) -> tuple[bool, list[str]]:
 
 
 def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple[bool, list[str]] | str:
-    """An unfinished PPO run's partial record: its files so far, its last checkpoint and
-    ``partial.json`` (what to copy back, commit file last); a reason string when it cannot be carried."""
-    if config.get("runner") == "dbc":
-        return DBC_PARTIAL
-    from plls_bench.train.checkpoint import committed_files
-
-    found = committed_files(run_dir) if config.get("runner") == "ppo" else None
+    """An unfinished run's partial record: its files so far, the last checkpoint that resumes it
+    (``RunnerSpec.load_resume_files``) and ``partial.json`` (what to copy back, commit file last);
+    a reason string when it cannot be carried."""
+    spec = RUNNERS.get(config.get("runner") or "")
+    if spec is None or spec.load_resume_files is None:
+        return spec.not_carried if spec else f"runner {config.get('runner')!r} is not registered"
+    found = spec.load_resume_files()(run_dir)
     if found is None:
         return "no checkpoint to carry"
     files, iteration = found
@@ -146,7 +137,7 @@ def export_artifact(runs_root: Path, out: Path, kind: str, name: str) -> tuple[b
 
 def export_records(runs_dir: str | Path, records_dir: str | Path | None = None) -> Exported:
     """Export every run of a non-smoke budget under ``runs_dir`` to ``records_dir``: finished ones
-    as records (a partial record of the same run is then removed), unfinished PPO runs as partial
+    as records (a partial record of the same run is then removed), unfinished runs as partial
     records, and the V_s / V_a artifacts of both, once each."""
     runs_root = Path(runs_dir)
     out = Path(records_dir) if records_dir is not None else records_dir_for(runs_root)

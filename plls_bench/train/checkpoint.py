@@ -127,3 +127,10 @@ def committed_files(run_path: Path) -> tuple[list[str], int] | None:
         return None
     names = [record["model"], *([record["normalization"]] if record.get("normalization") else []), LATEST]
     return [f"checkpoints/{name}" for name in names], int(record["progress"]["iteration"])
+
+
+def policy_files(run_path: Path) -> dict[str, Path]:
+    """Run-relative name -> path of the files that rebuild the last checkpointed policy
+    (:func:`committed_files`); empty without a checkpoint."""
+    found = committed_files(run_path)
+    return {} if found is None else {rel: Path(run_path) / rel for rel in found[0]}

@@ -139,3 +139,10 @@ def policy_bytes(run_dir: Path) -> bytes | None:
     buffer = io.BytesIO()
     torch.save(state["agent"]["modules"]["actor"], buffer)
     return buffer.getvalue()
+
+
+def policy_files(run_dir: Path) -> dict[str, bytes]:
+    """What a record carries to rebuild the policy: the actor's weights alone (no replay); empty
+    without a checkpoint."""
+    data = policy_bytes(run_dir)
+    return {} if data is None else {POLICY: data}
