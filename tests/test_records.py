@@ -106,6 +106,23 @@ def test_a_local_run_replaces_its_record(quick_runs: Path, tmp_path: Path) -> No
     assert [t.source for t in trials] == ["run", "run", "run"] and [t.seed for t in trials] == [0, 1, 2]
 
 
+
+def test_a_longer_budget_replaces_the_records_once_it_can_be_judged(quick_runs: Path, tmp_path: Path) -> None:
+    """Two finished paper trials beside three recorded quick ones: the quick group is still the
+    one judged (two cannot be); the third finished paper trial makes the paper group the one."""
+    clone = tmp_path / "results"
+    export_records(quick_runs / "runs", clone / "records")
+    for seed in range(3):
+        run, cfg = make_run(clone / "runs", "mountaincar_ppo", seed, budget="paper")
+        finish(run, cfg) if seed < 2 else None
+        runs = Runs(clone / "runs", clone / "records")
+        exp = runs.experiment("mountaincar_ppo")
+        assert (exp.budget, [t.seed for t in exp.trials]) == ("quick", [0, 1, 2])
+        assert any("config differs" in gap.problem for gap in runs.gaps), "the paper runs are reported"
+    finish(run, cfg)
+    exp = Runs(clone / "runs", clone / "records").experiment("mountaincar_ppo")
+    assert (exp.budget, [t.source for t in exp.trials]) == ("paper", ["run", "run", "run"])
+
 COMMITTED = Path(__file__).resolve().parent.parent / "results"
 
 

@@ -8,8 +8,10 @@ README's "What each runner writes" table are read.
 Trials come from the runs dir and from the committed records (``plls_bench/records/``; partial
 records, under ``records/partial/``, are never read: only ``<records>/<experiment>/<variant>``). A local
 run replaces the record of the same seed when their configs agree; otherwise both compete as
-groups of one config, and the group of the highest budget wins, then the largest, then the local
-one: a smoke run on a fresh clone never hides real-budget records.
+groups of one config. A group that can be judged (:data:`MIN_TRIALS` finished trials at a budget
+records keep) wins over one that cannot, then the highest budget, then the largest, then the local
+one: a smoke run on a fresh clone never hides real-budget records, and the first two finished trials
+of a longer budget do not hide three finished ones of a shorter budget until they can be judged.
 """
 from __future__ import annotations
 
@@ -24,8 +26,16 @@ import numpy as np
 from plls_bench.config.learning import BUDGET_NAMES
 from plls_bench.config.tasks import ENV_BACKENDS
 from plls_bench.hashing import stable_hash
+from plls_bench.records.layout import EXCLUDED_BUDGETS
 from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
                              read_json, scan_jsonl, variant_name)
+
+# The fewest finished trials per arm from which a claim about a stochastic quantity (a return, a
+# convergence point, a trained model's MSE) is judged. A 95% bootstrap CI over one trial does not
+# exist, and over two it is just their range (each resample is a, b or their mean): it says nothing
+# about the spread of a third. Three is the fewest that give an interval worth reading; fewer is
+# "not run at this budget". Deterministic quantities (parameter counts) need one.
+MIN_TRIALS = 3
 
 DEFAULT_VARIANT = "default"
 # A profile's own runs of a preset live in ``default``, or in ``env.backend=<b>`` when the profile
@@ -166,14 +176,15 @@ class Runs:
         return trial
 
     def _consistent(self, exp: Experiment, trials: list[Trial]) -> list[Trial]:
-        """Keep one group of trials whose configs agree apart from the seed: the highest budget,
-        then the most trials, then local runs over records."""
+        """Keep one group of trials whose configs agree apart from the seed: one that can be judged
+        (:func:`_judgeable`), then the highest budget, then the most trials, then local runs over records."""
         groups: dict[str, list[Trial]] = {}
         for trial in trials:
             groups.setdefault(_identity(trial.config), []).append(trial)
         if len(groups) <= 1:
             return sorted(trials, key=lambda t: t.seed)
-        keep = max(groups.values(), key=lambda g: (_budget_rank(g[0]), len(g), g[0].source == "run", -g[0].seed))
+        keep = max(groups.values(),
+                   key=lambda g: (_judgeable(g), _budget_rank(g[0]), len(g), g[0].source == "run", -g[0].seed))
         for group in groups.values():
             if group is not keep:
                 for trial in group:
@@ -244,6 +255,13 @@ def _replaced(trial: Trial, candidates: list[Trial]) -> bool:
     runs are scanned first and win over their records)."""
     ident = _identity(trial.config)
     return any(c.seed == trial.seed and _identity(c.config) == ident for c in candidates)
+
+
+def _judgeable(group: list[Trial]) -> bool:
+    """Whether a stochastic claim can be judged from ``group``: MIN_TRIALS finished trials at a
+    budget that records keep (never smoke, whatever its trial count)."""
+    finished = sum(trial.state == STATUS_DONE for trial in group)
+    return finished >= MIN_TRIALS and group[0].cfg("budget.name") not in EXCLUDED_BUDGETS
 
 
 def _budget_rank(trial: Trial) -> int:

@@ -13,17 +13,10 @@ from functools import reduce
 
 import numpy as np
 
-from plls_bench.report.load import Runs
+from plls_bench.report.load import MIN_TRIALS, Runs
 from plls_bench.report.returns import Curves
 from plls_bench.report.stats import complete
 from plls_bench.report.tables import fmt
-
-# The fewest finished trials per arm from which a claim about a stochastic quantity (a return, a
-# convergence point, a trained model's MSE) is judged. A 95% bootstrap CI over one trial does not
-# exist, and over two it is just their range (each resample is a, b or their mean): it says nothing
-# about the spread of a third. Three is the fewest that give an interval worth reading; fewer is
-# "not run at this budget". Deterministic quantities (parameter counts) need one.
-MIN_TRIALS = 3
 
 
 class NotJudged(Exception):
