@@ -162,18 +162,19 @@ def markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def notes(full_size: bool) -> list[str]:
-    """What the report answers at the sizes it ran at, and what it does not."""
+def notes(full_size: bool, native_bf16: bool) -> list[str]:
+    """What the report answers at the sizes it ran at, and what it does not (``native_bf16``: the
+    CPU has bf16 units, so the full size is affordable here)."""
     out = ["This compares numerics only. It says nothing about speed: bf16 is faster only on hardware "
            "with bf16 units (avx512_bf16 / AMX CPUs, CUDA GPUs)."]
     if not full_size:
+        why = ("" if native_bf16 else " This CPU has no bf16 units: bf16 is emulated and runs many times slower "
+               "than fp32 (CPU s per update below; `bench/cnn_speed.py` times the trunk alone), so the full "
+               "size would take hours here.")
         out.append("The sizes are smaller than the issue's (PPO: a 16 x 1000 rollout, 10 epochs of minibatch "
-                   "1000; DBC: the 1000 random transitions and 1000 updates of the runner's first learning "
-                   "step). This CPU has no bf16 units: bf16 is emulated and runs many times slower than fp32 (CPU s "
-                   "per update below; `bench/cnn_speed.py` times the trunk alone), so the full size would take "
-                   "hours here. The numerics question is answered at "
-                   "these sizes. On a machine with bf16 units, run the command with no size options: that is "
-                   "the full-size comparison.")
+                   f"1000; DBC: the 1000 random transitions and 1000 updates of the runner's first learning "
+                   f"step).{why} The numerics question is answered at these sizes. Run the command with no size "
+                   "options for the full-size comparison.")
     return out
 
 
@@ -237,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.argv[1:] if argv is None else argv)
     full = all(v is None for v in (args.ppo_envs, args.ppo_steps, args.ppo_epochs, args.ppo_batch,
                                    args.dbc_transitions, args.dbc_updates, args.dbc_batch))
-    report["notes"] = notes(full)
+    report["notes"] = notes(full, report["machine"]["bf16"].startswith("native"))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_json(args.out.with_suffix(".json"), report)
     atomic_write_bytes(args.out, markdown(report).encode())
