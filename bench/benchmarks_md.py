@@ -10,7 +10,7 @@ from pathlib import Path
 import torch
 
 from plls_bench.devices import cpu_model
-from plls_bench.runs import atomic_write_bytes
+from plls_bench.files import atomic_write_bytes
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -34,9 +34,9 @@ from bench.representations import TINY_REPR, prepare_representations  # noqa: E4
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS, Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
+from plls_bench.files import atomic_write_json
 from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_keys as plan_rate_keys  # noqa: E402
 from plls_bench.runner_specs import runner_spec  # noqa: E402
-from plls_bench.runs import atomic_write_json  # noqa: E402
 
 SECTION = "throughput"
 

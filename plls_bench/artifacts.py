@@ -18,8 +18,8 @@ from typing import Any, Callable
 import numpy as np
 from filelock import FileLock
 
+from plls_bench.files import atomic_write_bytes, atomic_write_json, read_json
 from plls_bench.hashing import stable_hash
-from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
 
 KEY_FILE = "key.json"
 

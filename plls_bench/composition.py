@@ -15,8 +15,9 @@ from omegaconf import OmegaConf
 
 from plls_bench.config import Config, ConfigError, FilmstripConfig, register_configs, to_config
 from plls_bench.config.runners import runner_of
+from plls_bench.files import read_json
 from plls_bench.records.layout import runs_dir_of
-from plls_bench.runs import read_json, variant_name
+from plls_bench.runs import variant_name
 
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 MAX_SWEEP_VALIDATION = 512  # a multirun larger than this is validated on its first jobs only

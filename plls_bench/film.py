@@ -14,8 +14,8 @@ from pathlib import Path
 from plls_bench.analysis import filmstrip
 from plls_bench.config import ConfigError
 from plls_bench.devices import require_device
+from plls_bench.files import read_json
 from plls_bench.runner_specs import RUNNERS, filming_runners
-from plls_bench.runs import read_json
 from plls_bench.train.policy import PolicyLoader
 
 

@@ -19,10 +19,11 @@ from plls_bench.composition import CONF_DIR, filmstrip_config
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, FilmstripConfig
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
+from plls_bench.files import read_json
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile, plan_sweep
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
-from plls_bench.runs import STATUS_DONE, Run, config_hash, read_json
+from plls_bench.runs import Run, STATUS_DONE, config_hash
 from plls_bench.sweeps import load_sweep, sweep_names
 
 LAUNCHERS = ("local", "joblib", "slurm")

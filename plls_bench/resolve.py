@@ -17,7 +17,8 @@ import yaml
 
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES
-from plls_bench.runs import atomic_write_bytes, config_dict, config_hash
+from plls_bench.files import atomic_write_bytes
+from plls_bench.runs import config_dict, config_hash
 
 RESOLVED_DIR = CONF_DIR.parent / "docs" / "resolved"
 COMMAND = "python -m plls_bench.resolve"

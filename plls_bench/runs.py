@@ -1,4 +1,5 @@
-"""The run-directory contract: paths, atomic writes, status, provenance and metrics streams.
+"""The run-directory contract: paths, status, provenance and metrics streams (atomic files:
+:mod:`plls_bench.files`).
 
 A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
 
@@ -17,16 +18,14 @@ Nothing outside this module writes into a run directory except through :class:`R
 from __future__ import annotations
 
 import copy
-import json
-import os
 import re
 import shutil
-import tempfile
 import time
 from dataclasses import asdict, dataclass, is_dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from plls_bench.files import append_jsonl, atomic_write_bytes, atomic_write_json, jsonl_line, read_json, read_jsonl
 from plls_bench.hashing import stable_hash
 
 STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
@@ -61,85 +60,6 @@ PARAMS_FILE = "metrics/params.json"
 ARCHITECTURE_FILE = "metrics/architecture.json"
 # Sub-outputs made from a finished run by a later command, each in ``<run dir>/<name>/``.
 RUN_OUTPUTS = ("filmstrip",)
-
-
-# --------------------------------------------------------------------------- atomic files
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temp file in the same directory, fsync and rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def atomic_write_json(path: Path, obj: Any) -> None:
-    atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True, default=str) + "\n").encode())
-
-
-def read_json(path: Path) -> Any | None:
-    """The parsed JSON at ``path``, or None when it is missing or unreadable."""
-    try:
-        return json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return None
-
-
-def jsonl_line(record: dict[str, Any]) -> str:
-    """The one format of a metrics line: sorted keys, numpy scalars as floats, newline-ended."""
-    return json.dumps(record, sort_keys=True, default=float) + "\n"
-
-
-def append_jsonl(path: Path, record: dict[str, Any]) -> None:
-    """Append one line-complete JSON record (one write call, flushed and fsynced)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "ab") as handle:
-        handle.write(jsonl_line(record).encode())
-        handle.flush()
-        os.fsync(handle.fileno())
-
-
-@dataclass(frozen=True)
-class JsonlScan:
-    """What a jsonl file holds: its complete records and what had to be skipped."""
-
-    records: list[Any]
-    corrupt_lines: tuple[int, ...]  # 1-based numbers of complete lines that are not valid JSON
-    torn_tail: bool                 # the last line has no newline: a kill mid-write
-
-
-def scan_jsonl(path: Path) -> JsonlScan | None:
-    """Parse ``path`` line by line, keeping account of skipped lines; None when it is missing or
-    unreadable. The results collector uses this to report damage that :func:`read_jsonl` hides."""
-    try:
-        text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError):
-        return None
-    records: list[Any] = []
-    corrupt: list[int] = []
-    torn = False
-    for number, line in enumerate(text.splitlines(keepends=True), 1):
-        if not line.endswith("\n"):
-            torn = True
-            break
-        try:
-            records.append(json.loads(line))
-        except ValueError:
-            corrupt.append(number)
-    return JsonlScan(records, tuple(corrupt), torn)
-
-
-def read_jsonl(path: Path) -> list[dict[str, Any]]:
-    """All complete records; a torn last line (a kill mid-write) or a corrupt line is skipped."""
-    scan = scan_jsonl(path)
-    return scan.records if scan is not None else []
 
 
 # --------------------------------------------------------------------------- config identity

@@ -16,8 +16,9 @@ import numpy as np
 
 from plls_bench.composition import compose
 from plls_bench.config import Config
+from plls_bench.files import read_json
 from plls_bench.report.registry import ENTRIES
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, STATUS_DONE, Run, config_hash, read_json, run_dir_path
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, STATUS_DONE, config_hash, run_dir_path
 from plls_bench.sweeps import load_sweep, sweep_names
 
 # The group choices of each registry preset; shipped presets where they exist (PPO: issue 4, the

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from plls_bench.artifacts import load_npz
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, read_json, read_jsonl
+from plls_bench.files import read_json, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 from tests.conftest import REPO_ROOT, compose_preset
 
 # smoke budget: 400 env steps (100 agent steps at action repeat 4), evaluations every 200

@@ -12,8 +12,9 @@ from plls_bench.__main__ import validate_command_line
 from plls_bench.composition import config_from_dict
 from plls_bench.config import ConfigError
 from plls_bench.devices import resolve_device
+from plls_bench.files import read_json
 from plls_bench.runner import execute
-from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, read_json, stable_hash
+from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
 from tests.conftest import compose_preset, run_cli
 
 

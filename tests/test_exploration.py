@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import VecNormalize
 
-from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, read_jsonl, stable_hash
+from plls_bench.files import read_jsonl
+from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
 from plls_bench.seeding import derive_seeds
 from plls_bench.train import checkpoint, normalize, ppo
 from plls_bench.train.agent import build_vec_env, load_trained, new_model

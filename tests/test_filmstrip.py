@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from plls_bench.analysis.filmstrip import filmstrip_config, record
+from plls_bench.files import read_json
 from plls_bench.runner import execute
-from plls_bench.runs import read_json
 from tests.conftest import REPO_ROOT, compose_preset
 
 

@@ -23,7 +23,7 @@ Graph = dict[str, dict[str, int]]  # module -> {imported project module: line of
 # Bottom up. A module belongs to the layer of its longest entry (the module or a package above it;
 # a bare root package is only itself) and imports only from its own layer and those below.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("foundation", ("plls_bench", "plls_bench.hashing", "plls_bench.seeding", "plls_bench.progress",
+    ("foundation", ("plls_bench", "plls_bench.files", "plls_bench.hashing", "plls_bench.seeding", "plls_bench.progress",
                     "plls_bench.metrics", "plls_bench.evaluate")),
     ("config", ("plls_bench.config",)),
     ("run dirs", ("plls_bench.devices", "plls_bench.provenance", "plls_bench.runs", "plls_bench.artifacts",

@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from plls_bench.files import read_jsonl
 from plls_bench.runner import execute
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
 from plls_bench.train.agent import build_vec_env, load_trained
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset, run_cli, start_cli

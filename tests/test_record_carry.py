@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from plls_bench.files import read_json
 from plls_bench.film import film_run
 from plls_bench.plan import plan_profile
 from plls_bench.records import export
@@ -17,7 +18,7 @@ from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR
 from plls_bench.report.load import Runs
 from plls_bench.runner import execute
-from plls_bench.runs import Run, config_hash, read_json, run_dir_path
+from plls_bench.runs import Run, config_hash, run_dir_path
 from plls_bench.train import ppo
 from tests.conftest import compose_preset
 from tests.synthetic_runs import make_run

@@ -10,12 +10,13 @@ import pytest
 import torch
 
 from plls_bench.data import get_dataset
+from plls_bench.files import atomic_write_json, read_json, read_jsonl
 from plls_bench.repr.keys import sha256
 from plls_bench.repr.store import (CheckpointError, CheckpointMismatch, ensure_artifact, ensure_representations,
                                    load_weights)
 from plls_bench.repr.train import new_model
 from plls_bench.runner import execute
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, atomic_write_json, read_json, read_jsonl
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 from tests.conftest import compose_preset, in_two_processes, run_cli
 
 EPOCH_KEYS = {"model", "epoch", "train_loss", "train_recon_mse", "train_kl", "val_loss", "val_recon_mse", "val_kl"}

@@ -9,9 +9,9 @@ import pytest
 import yaml
 
 from plls_bench.composition import CONF_DIR, recorded_config
+from plls_bench.files import atomic_write_json, jsonl_line, read_jsonl
 from plls_bench.runner import execute
-from plls_bench.runs import (VARIANT_EXCLUDED_KEYS, Run, atomic_write_json, config_hash, iter_run_dirs, jsonl_line,
-                             read_jsonl, unhashed_keys, variant_name)
+from plls_bench.runs import Run, VARIANT_EXCLUDED_KEYS, config_hash, iter_run_dirs, unhashed_keys, variant_name
 from tests.conftest import compose_preset
 
 
@@ -64,7 +64,8 @@ def test_a_run_output_is_made_only_once_every_file_and_its_marker_are_written(tm
             raise KeyboardInterrupt
         path.write_bytes(data)
 
-    monkeypatch.setattr("plls_bench.runs.atomic_write_bytes", torn)
+    for module in ("plls_bench.runs", "plls_bench.files"):  # bytes directly, and under atomic_write_json
+        monkeypatch.setattr(f"{module}.atomic_write_bytes", torn)
     with pytest.raises(KeyboardInterrupt):
         strip.write("h2", {"frames.npz": b"new", "filmstrip.json": {"interval": 8}})
     assert not strip.is_made("h1") and not strip.is_made("h2")  # half old, half new: made with neither

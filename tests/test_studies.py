@@ -15,12 +15,12 @@ from plls_bench.analysis.studies import (STUDIES, encode, reconstruction, sample
                                         tracking_steps)
 from plls_bench.composition import compose
 from plls_bench.config import ConfigError
+from plls_bench.files import read_json
 from plls_bench.report import render_all
 from plls_bench.report.collect import verify_outputs
 from plls_bench.repr.store import ensure_representations
 from plls_bench.repr.train import new_model
 from plls_bench.runner import execute
-from plls_bench.runs import read_json
 from tests.conftest import compose_preset, run_cli
 from tests.synthetic_runs import finish, make_run
 

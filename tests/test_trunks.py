@@ -20,9 +20,10 @@ from torch import nn
 
 from baselines.dbc.encoder import ConvTrunk
 from plls_bench.composition import config_from_dict
+from plls_bench.files import read_json
 from plls_bench.repr.keys import repr_key, repr_path
 from plls_bench.repr.models import StateVAE
-from plls_bench.runs import Run, config_hash, read_json, variant_name
+from plls_bench.runs import Run, config_hash, variant_name
 from plls_bench.train.networks import ChannelsLastPolicy, PaperCNN, policy_kwargs
 from plls_bench.trunks import PixelTrunk, memory_format
 from tests.conftest import REPO_ROOT, compose_preset

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from plls_bench.composition import compose
-from plls_bench.runs import atomic_write_bytes, atomic_write_json
+from plls_bench.files import atomic_write_bytes, atomic_write_json
 from plls_bench.seeding import derive_seeds
 
 METHODS = {"PPO": "mountaincar_ppo", "PL-LS + PPO": "mountaincar_plls_ppo"}

@@ -27,7 +27,7 @@ from scipy import stats
 
 from plls_bench.composition import compose
 from plls_bench.config import Config
-from plls_bench.runs import atomic_write_bytes, atomic_write_json
+from plls_bench.files import atomic_write_bytes, atomic_write_json
 
 BACKENDS = ("gymnasium", "envpool")
 VALIDATION_SEED = 20261123  # tracks no dataset of the suite is collected on (data seeds derive from data_seed)

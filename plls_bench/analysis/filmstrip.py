@@ -26,11 +26,12 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from plls_bench.artifacts import npz_bytes
 from plls_bench.composition import filmstrip_config
 from plls_bench.config import Config, ConfigError, FilmstripConfig
-from plls_bench.runs import Run, RunOutput, read_json
 from plls_bench.envs import make_env
+from plls_bench.files import read_json
 from plls_bench.latent import wrap_latent
 from plls_bench.repr.fit import torch_threads
 from plls_bench.repr.store import Representations, load_representations
+from plls_bench.runs import Run, RunOutput
 from plls_bench.seeding import derive_seeds
 from plls_bench.train.policy import PolicyLoader
 

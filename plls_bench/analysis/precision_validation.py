@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from plls_bench.analysis.precision_runs import Outputs, Sizes
-from plls_bench.runs import atomic_write_bytes, atomic_write_json
+from plls_bench.files import atomic_write_bytes, atomic_write_json
 
 Measure = Callable[[Outputs, Outputs], float]
 

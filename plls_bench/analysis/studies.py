@@ -22,9 +22,10 @@ from plls_bench.analysis import measures
 from plls_bench.analysis.mountaincar import MountainCar
 from plls_bench.artifacts import npz_bytes
 from plls_bench.config import Config, StudyConfig
+from plls_bench.files import read_json
 from plls_bench.repr.models import ActionVAE
 from plls_bench.repr.store import ensure_representations
-from plls_bench.runs import Run, read_json
+from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 
 log = logging.getLogger(__name__)

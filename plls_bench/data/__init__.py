@@ -10,7 +10,8 @@ import numpy as np
 
 from plls_bench.artifacts import Artifact, get_or_build, load_npz, save_npz
 from plls_bench.config import Config
-from plls_bench.runs import Run, atomic_write_json, read_json
+from plls_bench.files import atomic_write_json, read_json
+from plls_bench.runs import Run
 from plls_bench.seeding import derive_seeds
 
 DATA_FORMAT = 1  # bump when the stored layout changes: old artifacts are then never reused

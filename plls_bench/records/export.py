@@ -11,10 +11,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from plls_bench.files import read_json
 from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, PARTIAL_DIR, PARTIAL_MARKER,
                                        REPR_KINDS, records_dir_for)
 from plls_bench.runner_specs import RUNNERS
-from plls_bench.runs import STATUS_DONE, iter_run_dirs, read_json
+from plls_bench.runs import STATUS_DONE, iter_run_dirs
 
 RECORD_GLOBS = ("config.json", "status.json", "provenance.json", "metrics/*.jsonl", "metrics/*.json",
                 "samples/*.npz", "studies/*.npz", "filmstrip/filmstrip.json", "filmstrip/frames.npz")

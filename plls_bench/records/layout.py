@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from plls_bench.runs import Run, read_json
+from plls_bench.files import read_json
+from plls_bench.runs import Run
 
 # One cap for every committed file: a CarRacing V_s model.pt is 6.9 MiB and a CarRacing PPO
 # checkpoint (CNN weights with Adam's moments) 9.8 MiB; a DBC actor ~13 MiB (README "Results collector").

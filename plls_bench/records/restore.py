@@ -11,8 +11,8 @@ import shutil
 from pathlib import Path
 
 from plls_bench.artifacts import KEY_FILE
+from plls_bench.files import atomic_write_bytes, read_json
 from plls_bench.records.layout import PARTIAL_MARKER, partial_record, records_dir_for, run_key
-from plls_bench.runs import atomic_write_bytes, read_json
 
 
 def copy_artifact_files(source: Path, out: Path) -> None:

@@ -12,6 +12,7 @@ from typing import Iterable
 
 import numpy as np
 
+from plls_bench.files import atomic_write_bytes, atomic_write_json, read_json
 from plls_bench.progress import progress_bar
 from plls_bench.report.base import Entry, IdStatus, Options, Output
 from plls_bench.report.claims import read_claims
@@ -21,7 +22,6 @@ from plls_bench.report.readme import write_readme
 from plls_bench.report.registry import BY_ID, ENTRIES
 from plls_bench.report.returns import X_AXES
 from plls_bench.report.tables import PAPER_COLUMNS, read_paper
-from plls_bench.runs import atomic_write_bytes, atomic_write_json, read_json
 
 log = logging.getLogger(__name__)
 PAPER_DIR = Path(__file__).resolve().parents[2] / "results" / "paper"

@@ -25,10 +25,11 @@ import numpy as np
 
 from plls_bench.config.learning import BUDGET_NAMES
 from plls_bench.config.tasks import ENV_BACKENDS
+from plls_bench.files import read_json, scan_jsonl
 from plls_bench.hashing import stable_hash
 from plls_bench.records.layout import EXCLUDED_BUDGETS
 from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
-                             read_json, scan_jsonl, variant_name)
+                             variant_name)
 
 # The fewest finished trials per arm from which a claim about a stochastic quantity (a return, a
 # convergence point, a trained model's MSE) is judged. A 95% bootstrap CI over one trial does not

@@ -12,9 +12,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from plls_bench.files import atomic_write_bytes
 from plls_bench.report.base import Entry, Output
 from plls_bench.report.tables import plural
-from plls_bench.runs import atomic_write_bytes
 
 if TYPE_CHECKING:
     from plls_bench.report.load import Runs

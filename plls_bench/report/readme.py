@@ -9,10 +9,11 @@ from pathlib import Path
 from typing import Any
 
 from plls_bench.config import BUDGET_NAMES
+from plls_bench.files import atomic_write_bytes, read_json
 from plls_bench.provenance import git_state
 from plls_bench.report.base import IdStatus
 from plls_bench.report.tables import plural
-from plls_bench.runs import atomic_write_bytes, iter_run_dirs, read_json
+from plls_bench.runs import iter_run_dirs
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 STATUSES = ("ok", "partial", "empty", "error")  # partial = drawn, with gaps; empty = nothing to draw

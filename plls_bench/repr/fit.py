@@ -18,9 +18,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from plls_bench.files import atomic_write_bytes
 from plls_bench.progress import progress_bar
 from plls_bench.repr.models import VAE
-from plls_bench.runs import atomic_write_bytes
 from plls_bench.trunks import pixels_to_unit
 
 log = logging.getLogger(__name__)

@@ -11,10 +11,11 @@ import logging
 import torch
 
 from plls_bench.config import Config
+from plls_bench.files import read_json
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.keys import NAMES
 from plls_bench.repr.store import Representations, ensure_representations
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, read_json
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
 
 log = logging.getLogger(__name__)
 

@@ -31,13 +31,13 @@ from filelock import FileLock
 from plls_bench.artifacts import Artifact, discard, get_or_build, is_built
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
+from plls_bench.files import read_json
 from plls_bench.records.layout import recorded_artifact
 from plls_bench.records.restore import copy_artifact_files
 from plls_bench.repr.keys import (CONFIG_KEYS, FILES, KINDS, NAMES, build_command, model_config, repr_key,
                                   repr_path, sha256)
 from plls_bench.repr.models import ActionVAE, StateVAE
 from plls_bench.repr.train import build, new_model
-from plls_bench.runs import read_json
 from plls_bench.seeding import quiet_rng
 
 log = logging.getLogger(__name__)

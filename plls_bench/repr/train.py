@@ -19,11 +19,11 @@ from plls_bench.config import Config
 from plls_bench.data import RandomPolicyData, get_dataset
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_env
+from plls_bench.files import atomic_write_bytes, atomic_write_json
 from plls_bench.repr.fit import Split, batches, evaluate, fit, mean_reconstruction_mse, torch_threads
 from plls_bench.repr.keys import FILES, model_config, repr_path, sha256, training_seed
 from plls_bench.repr.models import VAE, ActionVAE, StateVAE
 from plls_bench.repr.samples import action_samples, state_samples
-from plls_bench.runs import atomic_write_bytes, atomic_write_json
 
 
 def action_dim(cfg: Config) -> int:

@@ -24,7 +24,8 @@ import numpy as np
 import torch
 from stable_baselines3 import PPO
 
-from plls_bench.runs import Run, atomic_write_bytes, read_json
+from plls_bench.files import atomic_write_bytes, read_json
+from plls_bench.runs import Run
 from plls_bench.train.loop import Progress
 
 LATEST = "latest.json"
