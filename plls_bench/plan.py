@@ -23,7 +23,7 @@ from plls_bench.records.layout import is_recorded, recorded_artifact, records_di
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
 from plls_bench.hashing import stable_hash
-from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, variant_name
+from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, variant_name, variant_overrides
 from plls_bench.sweeps import Sweep
 from plls_bench.train.schedule import Schedule
 
@@ -53,7 +53,7 @@ class PresetPlan:
 
     @property
     def label(self) -> str:
-        return " ".join((self.experiment, *self.overrides))
+        return " ".join((self.experiment, *variant_overrides(self.overrides)))
 
     @property
     def pending(self) -> list[Trial]:
@@ -127,14 +127,15 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
 
 def _plan_preset(experiment: str, profile: str, runs_dir: str, count_records: bool,
                  overrides: tuple[str, ...] = ()) -> PresetPlan:
-    """``overrides``: ``key=value`` settings (a sweep value, ``precision``), which name the run
-    dir's variant as Hydra's ``override_dirname`` does (conf/config.yaml: sorted, comma-joined)."""
+    """``overrides``: ``key=value`` settings (a sweep value, ``precision``, ``time_limit_min``); those
+    that change a result name the run dir's variant as Hydra's ``override_dirname`` does
+    (conf/config.yaml: sorted, comma-joined, excluded keys left out)."""
     first = preset_config(experiment, profile, runs_dir, overrides)
     trials, records = [], records_dir_for(runs_dir)
     for seed in range(first.budget.trials):
         # the seed is a plain field that no other value interpolates: replace() equals composing seed=k
         cfg = dataclasses.replace(first, seed=seed)
-        variant = variant_name(cfg.variant, ",".join(sorted(overrides)), cfg.env.backend)
+        variant = variant_name(cfg.variant, ",".join(variant_overrides(overrides)), cfg.env.backend)
         path = run_dir_path(runs_dir, experiment, variant, seed)
         cfg_hash = config_hash(cfg)
         trials.append(Trial(seed, path, Run(path).is_done(cfg_hash), cfg,

@@ -23,7 +23,7 @@ from plls_bench.files import read_json
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile, plan_sweep
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
-from plls_bench.runs import Run, STATUS_DONE, config_hash
+from plls_bench.runs import STATUS_DONE, STATUS_STOPPED, Run, config_hash, variant_overrides
 from plls_bench.sweeps import load_sweep, sweep_names
 
 LAUNCHERS = ("local", "joblib", "slurm")
@@ -83,8 +83,10 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
         start = time.perf_counter()
         done = subprocess.run(multirun_command(plan, profile, runs_dir, overrides))
         status = "ok" if done.returncode == 0 else f"FAILED (exit {done.returncode})"
+        stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
+        note = f", seed(s) {', '.join(map(str, stopped))} stopped at time_limit_min (run again to resume)" if stopped else ""
         print(f"[reproduce] {plan.label}: {status}; ran {len(plan.pending)} trial(s), "
-              f"{len(plan.trials) - len(plan.pending)} already done, {time.perf_counter() - start:.0f}s", flush=True)
+              f"{len(plan.trials) - len(plan.pending)} already done, {time.perf_counter() - start:.0f}s{note}", flush=True)
         if done.returncode != 0:
             failed.append(plan.label)
     return failed
@@ -110,7 +112,7 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
     failed, filmed = [], _filmstrip_presets()
     for plan in plans:
         strip = filmed.get(plan.experiment)
-        if strip is None or not plan.trials or plan.overrides:  # a sweep's variants are not filmed
+        if strip is None or not plan.trials or variant_overrides(plan.overrides):  # a variant (a sweep value) is not filmed
             continue
         if not runner_spec(plan.runner).films:  # a filmstrip config that lists a preset with no policy
             print(f"[reproduce] {plan.experiment}: listed in conf/filmstrip/{plan.env}.yaml, but runner "
@@ -180,6 +182,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="conv trunks' precision for every preset (default fp32, every preset's own): "
                              "bf16 adds precision=bf16 to each run (its run dir variant) and costs it "
                              "with bf16 rates")
+    parser.add_argument("--time-limit-min", type=float, default=0.0, metavar="MIN",
+                        help="per trial: a learner stops at its last checkpoint before MIN minutes (status "
+                             "stopped) and the next launch resumes it; for job time limits (default 0: none)")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
@@ -191,6 +196,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
+    if not args.time_limit_min >= 0:
+        parser.error(f"--time-limit-min must be >= 0, got {args.time_limit_min}")
     bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
     if args.sweep and args.only:
         parser.error("--sweep and --only: give one (a sweep runs only its own preset)")
@@ -210,6 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         count_records = not args.rerun_recorded
         # fp32 adds nothing: the presets' own value, so their run dirs stay where they are
         extra = (f"precision={args.precision}",) if args.precision != "fp32" else ()
+        extra += (f"time_limit_min={args.time_limit_min:g}",) if args.time_limit_min > 0 else ()
         if args.sweep:
             plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs, count_records=count_records,
                                overrides=extra)

@@ -14,15 +14,17 @@ from plls_bench.config import Config
 from plls_bench.devices import require_device
 from plls_bench.records.restore import seed_from_partial
 from plls_bench.runner_specs import runner_spec
-from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, Run, config_hash
+from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, STATUS_STOPPED, Run, config_hash
 from plls_bench.seeding import derive_seeds, seed_everything
+from plls_bench.train.loop import TimeLimitReached
 
 log = logging.getLogger(__name__)
 
 
 def execute(cfg: Config, run_dir: str | Path) -> str:
     """Run ``cfg`` in ``run_dir``. Returns ``"skipped"`` (already done with this config) or
-    ``"done"``; raises after marking the run failed. A run dir holding a *different* config is
+    ``"done"``, or ``"stopped"`` (at a checkpoint, by ``time_limit_min``: the next launch resumes it);
+    raises after marking the run failed. A run dir holding a *different* config is
     moved aside under ``<runs_dir>/.superseded/`` first, never overwritten or deleted."""
     run, cfg_hash = Run(run_dir), config_hash(cfg)
     if run.is_done(cfg_hash):
@@ -36,13 +38,20 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
     seeded = seed_from_partial(run.path, cfg.runs_dir, cfg_hash)  # another session's unfinished trial
     if seeded is not None:
         log.info("resuming seed=%d from partial record %s at iteration %d", cfg.seed, *seeded)
-    fn = runner_spec(cfg.runner).load()  # imports this runner's module (and simulator) only
+    spec = runner_spec(cfg.runner)
+    if cfg.time_limit_min > 0 and not spec.time_limited:
+        log.info("runner %s runs to its end: time_limit_min applies to learners that checkpoint", cfg.runner)
+    fn = spec.load()  # imports this runner's module (and simulator) only
     _configure_torch(cfg)
     seed_everything(derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).train)
     run.prepare(cfg, cfg_hash)
     run.write_status(STATUS_RUNNING, config_hash=cfg_hash)
     try:
         fn(cfg, run)
+    except TimeLimitReached as stop:
+        log.info("%s", stop)
+        run.write_status(STATUS_STOPPED, config_hash=cfg_hash, iteration=stop.at.iteration, reason=str(stop))
+        return "stopped"
     except BaseException as err:
         run.write_status(STATUS_FAILED, config_hash=cfg_hash, error=f"{type(err).__name__}: {err}")
         raise

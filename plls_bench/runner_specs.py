@@ -56,6 +56,9 @@ class RunnerSpec:
     load_policy_files: Callable[[], PolicyFiles] | None = None
     load_resume_files: Callable[[], ResumeFiles] | None = None
     not_carried: str = "no checkpoint to carry"
+    # Trains in the skeleton of ``train/loop.py``, so ``time_limit_min`` stops it at a checkpoint;
+    # the other runners are short and run to their end.
+    time_limited: bool = False
 
     @property
     def films(self) -> bool:
@@ -126,11 +129,11 @@ SPECS: tuple[RunnerSpec, ...] = (
     RunnerSpec("ppo", _ppo, order=3, measure="ppo_iterations", trains_policy=True, load_policy=_ppo_policy,
                iteration_unit="PPO iteration ({} envs x {} steps)",
                iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps"),
-               load_policy_files=_ppo_policy_files, load_resume_files=_ppo_checkpoint),
+               load_policy_files=_ppo_policy_files, load_resume_files=_ppo_checkpoint, time_limited=True),
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               not_carried="DBC replay too large to carry"),  # ~21 kB per transition (BENCHMARKS.md)
+               not_carried="DBC replay too large to carry", time_limited=True),  # ~21 kB per transition (BENCHMARKS.md)
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

@@ -29,9 +29,10 @@ from plls_bench.files import append_jsonl, atomic_write_bytes, atomic_write_json
 from plls_bench.hashing import stable_hash
 
 STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
+STATUS_STOPPED = "stopped"  # ended early at a checkpoint (time_limit_min); the next launch resumes it
 SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
 # Config keys that do not change what a run computes: left out of the config hash.
-HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant")
+HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant", "time_limit_min")
 # Keys added after runs were recorded: at these values (which compute what the runs before the key
 # computed) they are left out of the hash, so those runs and their committed records keep their
 # identity. A key set to anything else is hashed like every other.
@@ -116,6 +117,13 @@ def variant_name(variant: str, override_dirname: str = "", backend: str = "gymna
     if tag and tag not in name.split(","):
         name = f"{name},{tag}" if name else tag
     return name[:120] or "default"
+
+
+def variant_overrides(overrides: Iterable[str]) -> list[str]:
+    """The ``key=value`` overrides that name a run dir's variant, as Hydra's ``override_dirname``
+    keeps them: all but :data:`VARIANT_EXCLUDED_KEYS` and :func:`unhashed_keys`, sorted."""
+    left_out = {*VARIANT_EXCLUDED_KEYS, *unhashed_keys()}
+    return sorted(o for o in overrides if o.split("=", 1)[0].lstrip("+~") not in left_out)
 
 
 def run_dir_path(runs_dir: str | Path, experiment: str, variant: str, seed: int) -> Path:

@@ -56,6 +56,7 @@ class Config(Validated):
     torch_threads: int = 0
     precision: str = "fp32"
     progress: bool = True
+    time_limit_min: float = 0.0
     env: EnvConfig = field(default_factory=EnvConfig)
     repr: ReprConfig = field(default_factory=ReprConfig)
     algo: AlgoConfig = field(default_factory=AlgoConfig)
@@ -70,6 +71,7 @@ class Config(Validated):
         check_choice(self.device, DEVICES, "device")
         check_choice(self.precision, PRECISIONS, "precision")
         check_nonnegative(self.torch_threads, "torch_threads")
+        check_nonnegative(self.time_limit_min, "time_limit_min")
         check(bool(self.experiment) and "/" not in self.experiment, "experiment",
               f"must be a non-empty name without '/', got {self.experiment!r}")
         check("/" not in self.variant, "variant", f"must not contain '/', got {self.variant!r}")

@@ -5,18 +5,25 @@
     [fresh: evaluate at 0 when due, checkpoint when due]
     while iteration < iterations:
         train_iteration -> train row -> evaluate when due -> eval row -> report -> checkpoint when due
+        [after a checkpoint: stop if the next one would come after ``time_limit_min``]
 
 A trainer builds its env, agent, buffer and logger once in ``setup`` and supplies the steps; this
 module owns their order, resume, the wall clock, the metric rows (:mod:`plls_bench.metrics`) and
 the progress bar. A checkpoint at iteration k covers every metric row with ``iteration <= k``: a
 restarted run drops the newer rows and redoes those iterations, so the history ends complete and
 without duplicates.
+
+``time_limit_min`` (0: none) ends a run early, at a checkpoint, for cluster jobs with a wall-clock
+limit and compute spread over sessions: after each checkpoint the loop stops if this process's
+training time plus the time the last checkpoint interval took would pass the limit, and raises
+:class:`TimeLimitReached`; the runner leaves the run ``stopped`` and the next launch resumes it.
+Nothing past the checkpoint is lost, unlike a job killed at its limit.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import Any, Callable, Protocol
 
 from tqdm import tqdm  # the type of the bar progress_bar returns
 
@@ -41,6 +48,34 @@ class Progress:
     env_steps: int = 0
     evaluations: int = 0
     episodes: int = 0
+
+
+class TimeLimitReached(Exception):
+    """A run stopped at a checkpoint because the next would come after ``time_limit_min``."""
+
+    def __init__(self, at: Progress, limit_min: float) -> None:
+        super().__init__(f"stopped at iteration {at.iteration} ({at.env_steps:,} env steps): the next checkpoint "
+                         f"would come after time_limit_min={limit_min:g}; run the same command again to resume")
+        self.at = at
+
+
+class TimeLimit:
+    """Whether to stop after a checkpoint: this process's training time plus the last checkpoint
+    interval would pass ``limit_min`` minutes (0: never). Times are ``now()`` seconds."""
+
+    def __init__(self, limit_min: float, now: Callable[[], float] = time.perf_counter) -> None:
+        self.limit_s, self.now = 60.0 * limit_min, now
+        self.started = self.last_checkpoint = now()
+
+    def mark(self) -> None:
+        """Start timing the next checkpoint interval here (set-up and restore time are not one)."""
+        self.last_checkpoint = self.now()
+
+    def stop_after_checkpoint(self) -> bool:
+        """Call right after each checkpoint of the training loop."""
+        now = self.now()
+        interval, self.last_checkpoint = now - self.last_checkpoint, now
+        return self.limit_s > 0 and (now - self.started) + interval > self.limit_s
 
 
 class Trainer(Protocol):
@@ -86,7 +121,9 @@ class _Clock:
 
 
 def train(trainer: Trainer, run: Run, cfg: Config) -> None:
-    """Run ``trainer`` to its last iteration in ``run``, resuming from its checkpoint if any."""
+    """Run ``trainer`` to its last iteration in ``run``, resuming from its checkpoint if any; raises
+    :class:`TimeLimitReached` after a checkpoint when ``cfg.time_limit_min`` would pass."""
+    limit = TimeLimit(cfg.time_limit_min)
     trainer.setup()
     try:
         restored = trainer.restore()
@@ -98,21 +135,26 @@ def train(trainer: Trainer, run: Run, cfg: Config) -> None:
         with progress_bar(total=trainer.iterations, initial=at.iteration, unit=trainer.unit, disable=not cfg.progress,
                           desc=f"{cfg.runner} {cfg.experiment} seed={cfg.seed}") as bar:
             if restored is None:  # a resumed run's checkpoint came after its point's evaluation
-                at = _point(trainer, run, replace(at, wall_s=clock()), None, clock, bar)
+                at, _ = _point(trainer, run, replace(at, wall_s=clock()), None, clock, bar)
+            limit.mark()
             while at.iteration < trainer.iterations:
                 at, metrics = trainer.train_iteration(at)
                 at = replace(at, wall_s=clock())
                 row = None if metrics is None else TrainRow.at(at, metrics)
                 if row is not None:
                     run.log("train", row.to_record())
-                at = _point(trainer, run, at, row, clock, bar)
+                at, checkpointed = _point(trainer, run, at, row, clock, bar)
                 bar.update(1)
+                if checkpointed and at.iteration < trainer.iterations and limit.stop_after_checkpoint():
+                    raise TimeLimitReached(at, cfg.time_limit_min)
     finally:
         trainer.close()
 
 
-def _point(trainer: Trainer, run: Run, at: Progress, row: TrainRow | None, clock: _Clock, bar: tqdm) -> Progress:
-    """Evaluate when due, report, checkpoint when due; the position with the evaluation counted."""
+def _point(trainer: Trainer, run: Run, at: Progress, row: TrainRow | None, clock: _Clock,
+           bar: tqdm) -> tuple[Progress, bool]:
+    """Evaluate when due, report, checkpoint when due; the position with the evaluation counted,
+    and whether a checkpoint was written."""
     evaluation = trainer.evaluate(at) if trainer.eval_due(at) else None
     if evaluation is not None:
         run.log("eval", evaluation.to_record())
@@ -121,6 +163,7 @@ def _point(trainer: Trainer, run: Run, at: Progress, row: TrainRow | None, clock
                          ("return_mean_stochastic", evaluation.return_mean_stochastic)) if v is not None},
                         refresh=False)
     trainer.report(at, row, evaluation)
-    if trainer.checkpoint_due(at, evaluation is not None):
+    due = trainer.checkpoint_due(at, evaluation is not None)
+    if due:
         trainer.checkpoint(replace(at, wall_s=clock()))
-    return at
+    return at, due

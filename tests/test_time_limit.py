@@ -1,0 +1,78 @@
+"""``time_limit_min``: a learner stops at a checkpoint before its limit, status ``stopped``, and the
+next launch resumes it to the same complete history; the key changes no hash and no run dir."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from plls_bench.config import ConfigError
+from plls_bench.plan import plan_profile
+from plls_bench.runner import execute
+from plls_bench.runs import Run, config_hash
+from plls_bench.train.loop import TimeLimit
+from plls_bench.train.schedule import Schedule
+from tests.conftest import compose_preset
+from tests.test_ppo_runs import check_run_contract
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_time_limit_stops_when_the_next_interval_would_pass_it() -> None:
+    clock = FakeClock()
+    limit = TimeLimit(10.0, now=clock)  # 600 s
+    clock.t = 100.0  # set-up and restore
+    limit.mark()
+    clock.t = 300.0  # first checkpoint: 300 s in, the interval took 200 s -> next ends at 500
+    assert not limit.stop_after_checkpoint()
+    clock.t = 450.0  # 450 s in, interval 150 s -> next ends at 600, not past the limit
+    assert not limit.stop_after_checkpoint()
+    clock.t = 610.0  # 610 s in, interval 160 s -> would end at 770
+    assert limit.stop_after_checkpoint()
+
+
+def test_no_limit_never_stops() -> None:
+    clock = FakeClock()
+    limit = TimeLimit(0.0, now=clock)
+    clock.t = 1e9
+    assert not limit.stop_after_checkpoint()
+
+
+def test_negative_time_limit_is_refused_naming_the_key(runs_dir: Path) -> None:
+    with pytest.raises(ConfigError, match="time_limit_min"):
+        compose_preset("mountaincar_ppo", runs_dir, "time_limit_min=-1")
+
+
+def test_time_limit_changes_neither_hash_nor_run_dir(runs_dir: Path) -> None:
+    plain = compose_preset("mountaincar_ppo", runs_dir)
+    limited = compose_preset("mountaincar_ppo", runs_dir, "time_limit_min=30")
+    assert limited.time_limit_min == 30 and config_hash(limited) == config_hash(plain)
+    dirs = [[t.run_dir for p in plan_profile("smoke", str(runs_dir), ["mountaincar_ppo"], overrides=o) for t in p.trials]
+            for o in ((), ("time_limit_min=30",))]
+    assert dirs[0] == dirs[1] and all("time_limit" not in str(d.relative_to(runs_dir)) for d in dirs[1])
+
+
+@pytest.mark.slow
+def test_a_stopped_run_resumes_to_the_complete_history(runs_dir: Path) -> None:
+    """A limit far below one iteration stops the run after its first checkpointed iteration; the
+    next launch without a limit finishes it, every eval and train row once."""
+    overrides = ("budget.train_env_steps=2560", "budget.eval_every_env_steps=512")  # 5 iterations
+    run_dir = runs_dir / "mountaincar_ppo" / "default" / "seed=0"
+    cfg = compose_preset("mountaincar_ppo", runs_dir, *overrides, "time_limit_min=1e-6")
+    assert execute(cfg, run_dir) == "stopped"
+    status = Run(run_dir).read_status() or {}
+    assert status["state"] == "stopped" and status["iteration"] == 1 and "time_limit_min" in status["reason"]
+    assert json.loads((run_dir / "checkpoints" / "latest.json").read_text())["progress"]["iteration"] == 1
+    assert [r["iteration"] for r in Run(run_dir).read_metrics("train")] == [1]
+
+    cfg = compose_preset("mountaincar_ppo", runs_dir, *overrides)
+    assert execute(cfg, run_dir) == "done"
+    check_run_contract(run_dir, Schedule.of(cfg), cfg.budget.eval_episodes)
+    assert len(json.loads((run_dir / "provenance.json").read_text())["starts"]) == 2
