@@ -133,7 +133,7 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               not_carried="DBC replay too large to carry", time_limited=True),  # ~21 kB per transition (BENCHMARKS.md)
+               not_carried="DBC checkpoint too large to carry", time_limited=True),  # replay + 116 MiB agent (README)
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

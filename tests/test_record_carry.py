@@ -64,7 +64,7 @@ def test_an_unfinished_dbc_run_is_not_carried(tmp_path: Path, all_budgets: None)
     run.prepare(cfg, config_hash(cfg))
     run.write_status("running", config_hash=config_hash(cfg))
     done = export_records(runs)
-    assert done.skipped == ["cheetah_dbc/default/seed=0: status running (DBC replay too large to carry)"]
+    assert done.skipped == ["cheetah_dbc/default/seed=0: status running (DBC checkpoint too large to carry)"]
     assert not (tmp_path / "results" / "records").exists()
 
 
