@@ -9,6 +9,7 @@ import pytest
 
 from plls_bench.config import ConfigError
 from plls_bench.plan import plan_profile
+from plls_bench.reproduce import parse_args
 from plls_bench.runner import execute
 from plls_bench.runs import Run, config_hash
 from plls_bench.train.loop import TimeLimit
@@ -76,3 +77,9 @@ def test_a_stopped_run_resumes_to_the_complete_history(runs_dir: Path) -> None:
     assert execute(cfg, run_dir) == "done"
     check_run_contract(run_dir, Schedule.of(cfg), cfg.budget.eval_episodes)
     assert len(json.loads((run_dir / "provenance.json").read_text())["starts"]) == 2
+
+
+def test_reproduce_refuses_a_negative_time_limit(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        parse_args(["--time-limit-min", "-5"])
+    assert "--time-limit-min must be >= 0" in capsys.readouterr().err
