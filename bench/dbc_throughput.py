@@ -2,6 +2,7 @@
 
     nice -n 10 .venv/bin/python bench/dbc_throughput.py                      # cheetah_dbc, budget=quick
     nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 2 --updates 20
+    nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 --layouts contiguous channels_last
 
 The env and agent are built as the ``dbc`` runner builds them (``budget=quick``: the reference
 launcher's batch size 128 and hidden size 1024), from a V_a artifact that must already exist
@@ -9,8 +10,10 @@ under ``--runs`` for PL-LS presets (nothing is trained here). Acting: ``--steps`
 VecEnv (render, frame stack, stochastic policy forward, replay insert; no updates), reported in
 env steps (frames, action repeat 4) per second. Updates: median time of ``--updates`` full DBC
 updates (critic, bisimulation/transition/reward, actor and temperature on even steps, targets)
-on minibatches sampled from the replay filled by the acting phase. Prints the command and the
-machine, and rewrites this script's section of ``BENCHMARKS.md``.
+on minibatches sampled from the replay filled by the acting phase. ``--layouts``: ``channels_last``
+is the suite's (every conv trunk runs in its weights' layout, ``plls_bench/trunks.py``);
+``contiguous`` converts the built agent's modules back before any update, the layout before that
+change. Prints the command and the machine, and rewrites this script's section of ``BENCHMARKS.md``.
 """
 from __future__ import annotations
 
@@ -34,6 +37,7 @@ from plls_bench.seeding import seed_everything  # noqa: E402
 from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 
 SECTION = "dbc_throughput"
+LAYOUTS = {"contiguous": torch.contiguous_format, "channels_last": torch.channels_last}
 
 
 def build_trainer(preset: str, budget: str, runs_dir: str, overrides: Sequence[str] = ()) -> DBCTrainer:
@@ -48,10 +52,12 @@ def build_trainer(preset: str, budget: str, runs_dir: str, overrides: Sequence[s
 
 
 def measure(preset: str, budget: str, threads: int, steps: int, updates: int, runs_dir: str,
-            overrides: Sequence[str] = ()) -> dict[str, float]:
+            overrides: Sequence[str] = (), layout: str = "channels_last") -> dict[str, float]:
     """Acting env steps/s and seconds per update; ``overrides`` apply after the preset's."""
     torch.set_num_threads(threads)
     trainer = build_trainer(preset, budget, runs_dir, overrides)
+    for module in trainer.agent.modules().values():  # in place: the optimisers keep their parameters
+        module.to(memory_format=LAYOUTS[layout])
     cfg = trainer.cfg
     try:
         obs = trainer.train_env.reset()
@@ -81,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--presets", nargs="+", default=["cheetah_dbc"])
     parser.add_argument("--budget", default="quick", help="budget whose DBC settings are used")
     parser.add_argument("--threads", nargs="+", type=int, default=[1, 2], help="torch intra-op threads")
+    parser.add_argument("--layouts", nargs="+", default=["channels_last"], choices=list(LAYOUTS))
     parser.add_argument("--steps", type=int, default=100, help="timed agent steps of acting")
     parser.add_argument("--updates", type=int, default=10, help="timed updates (after 2 warm-up)")
     parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
@@ -90,10 +97,11 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for preset in args.presets:
         for threads in args.threads:
-            m = measure(preset, args.budget, threads, args.steps, args.updates, args.runs)
-            rows.append(f"| `{preset}` | {threads} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | {m['cpu_s']:.2f} | "
-                        f"**{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
-            print(rows[-1], flush=True)
+            for layout in args.layouts:
+                m = measure(preset, args.budget, threads, args.steps, args.updates, args.runs, layout=layout)
+                rows.append(f"| `{preset}` | {threads} | {layout} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | "
+                            f"{m['cpu_s']:.2f} | **{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
+                print(rows[-1], flush=True)
     finish_section(
         SECTION, f"DBC updates and env steps per second (`bench/dbc_throughput.py`, budget={args.budget})",
         command, f"Acting: {args.steps} agent steps (render, stochastic policy, replay insert; no updates), in env "
@@ -101,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         "CPU s / update is the process time (all threads), less sensitive than wall time to other "
         "processes on a shared machine. Replay bytes per transition: this suite's frame replay / the "
         "reference's layout.",
-        ["preset", "torch threads", "acting env steps/s", "batch", "s / update", "CPU s / update", "updates/s",
+        ["preset", "torch threads", "layout", "acting env steps/s", "batch", "s / update", "CPU s / update", "updates/s",
          "replay bytes"], rows, write=not args.no_write)
     return 0
 
