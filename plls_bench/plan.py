@@ -19,7 +19,9 @@ from typing import Any
 from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
-from plls_bench.records.layout import is_recorded, recorded_artifact, records_dir_for
+from plls_bench.files import read_json
+from plls_bench.records.layout import (PARTIAL_MARKER, is_recorded, partial_record, recorded_artifact,
+                                       records_dir_for)
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
 from plls_bench.hashing import stable_hash
@@ -37,6 +39,14 @@ class Trial:
     done: bool                                    # status.json says done for this exact config
     cfg: Config = field(repr=False, compare=False)  # the config the runner will get
     recorded: bool = False                        # a committed record says done for this config
+    resumes_at: int = 0                           # iteration of the checkpoint it resumes from
+    resumes_from: str = ""                        # "run dir" or "partial record" ("": starts afresh)
+    iterations: int = 0                           # iterations of the whole run (learners; else 0)
+
+    @property
+    def remaining(self) -> float:
+        """Fraction of its policy training still to run (1 for a fresh trial or a non-learner)."""
+        return 1.0 - self.resumes_at / self.iterations if self.iterations else 1.0
 
 
 @dataclass
@@ -137,12 +147,30 @@ def _plan_preset(experiment: str, profile: str, runs_dir: str, count_records: bo
         cfg = dataclasses.replace(first, seed=seed)
         variant = variant_name(cfg.variant, ",".join(variant_overrides(overrides)), cfg.env.backend)
         path = run_dir_path(runs_dir, experiment, variant, seed)
-        cfg_hash = config_hash(cfg)
-        trials.append(Trial(seed, path, Run(path).is_done(cfg_hash), cfg,
-                            is_recorded(records, path.relative_to(runs_dir), cfg_hash)))
+        cfg_hash, key = config_hash(cfg), path.relative_to(runs_dir)
+        done = Run(path).is_done(cfg_hash)
+        at, source = (0, "") if done else _resume_point(cfg, path, partial_record(records, key, cfg_hash), cfg_hash)
+        trials.append(Trial(seed, path, done, cfg, is_recorded(records, key, cfg_hash), at, source,
+                            Schedule.of(cfg).iterations if source else 0))
     rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
                       first.budget.train_env_steps if rl else 0, overrides=overrides, count_records=count_records)
+
+
+def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) -> tuple[int, str]:
+    """(iteration, where) of the checkpoint an unfinished trial resumes from, as the runner picks
+    it (``records.restore.seed_from_partial``): its own run dir's checkpoint of this config, else a
+    partial record of this config; (0, "") when it starts afresh or its runner carries none."""
+    spec = runner_spec(cfg.runner)
+    if spec.load_resume_files is None:
+        return 0, ""
+    if (Run(path).read_config() or {}).get("config_hash") == cfg_hash:
+        local = spec.load_resume_files()(path)
+        if local is not None:
+            return local[1], "run dir"
+    if partial is not None:
+        return int(read_json(partial / PARTIAL_MARKER)["iteration"]), "partial record"
+    return 0, ""
 
 
 # --------------------------------------------------------------------------- cost estimates
@@ -150,7 +178,7 @@ def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tu
     """Seconds of compute for the plan's pending trials (shared artifacts counted once)."""
     total, missing = 0.0, []
     for trial in plan.pending:
-        for key, amount in _workload(trial.cfg, costed):
+        for key, amount in _workload(trial.cfg, costed, trial.remaining):
             if key not in rates:
                 missing.append(key)
             else:
@@ -177,8 +205,9 @@ def rate_keys(cfg: Config) -> dict[str, str]:
     return keys
 
 
-def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
-    """(rate key, amount) pairs: env steps, training samples, or runs (for fixed-cost studies)."""
+def _workload(cfg: Config, costed: set[str], remaining: float = 1.0) -> list[tuple[str, float]]:
+    """(rate key, amount) pairs: env steps, training samples, or runs (for fixed-cost studies);
+    ``remaining``: the fraction of policy training (and its evaluations) a resumed trial has left."""
     from plls_bench.data import dataset_key  # lazy: imports the simulators' wrappers
 
     budget, keys, work, spec = cfg.budget, rate_keys(cfg), [], runner_spec(cfg.runner)
@@ -191,7 +220,7 @@ def _workload(cfg: Config, costed: set[str]) -> list[tuple[str, float]]:
     for which in trained:
         work.append((keys[f"repr_{which}"], data_steps * cfg.env.data_train_fraction * budget.epochs_for(which)))
     if "train" in keys:
-        work += [(keys["train"], budget.train_env_steps), (keys["eval"], _eval_env_steps(cfg))]
+        work += [(keys["train"], budget.train_env_steps * remaining), (keys["eval"], _eval_env_steps(cfg) * remaining)]
     if "run" in keys:
         work.append((keys["run"], 1))
     return work

@@ -10,16 +10,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.files import read_json
+from plls_bench.files import atomic_write_json, read_json
 from plls_bench.film import film_run
 from plls_bench.plan import plan_profile
 from plls_bench.records import export
 from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR
 from plls_bench.report.load import Runs
+from plls_bench.reproduce import format_plan
 from plls_bench.runner import execute
 from plls_bench.runs import Run, config_hash, run_dir_path
 from plls_bench.train import ppo
+from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset
 from tests.synthetic_runs import make_run
 from tests.test_reproduce import reproduce
@@ -197,3 +199,28 @@ def test_a_recorded_dbc_policy_keeps_its_actor_alone_and_films_the_same(
     meta = film_run(record, tmp_path / "strip_record", device="cpu", max_steps=20)
     assert meta["checkpoint"] == "dbc_policy.pt" and meta["episode_return"] == original["episode_return"]
     assert (tmp_path / "strip_record" / "frames.npz").read_bytes() == (tmp_path / "strip_run" / "frames.npz").read_bytes()
+
+
+def test_the_dry_run_costs_only_what_a_resumed_trial_has_left(tmp_path: Path) -> None:
+    """A trial with a partial record (or its own checkpoint, which wins, as in the runner) is
+    listed with the iteration it resumes from, and only its remaining training is costed."""
+    runs = tmp_path / "results" / "runs"
+    cfg = compose_preset("mountaincar_ppo", runs)
+    rates = {"train/mountaincar_ppo": 1.0, "eval/mountaincar_ppo": 1.0}
+    [fresh] = plan_profile("smoke", str(runs), only=["mountaincar_ppo"], rates=rates)
+    total = Schedule.of(cfg).iterations
+    assert total >= 2 and fresh.trials[0].resumes_from == "" and fresh.seconds
+
+    marker = {"config_hash": config_hash(cfg), "iteration": total // 2, "files": [], "commit": "x"}
+    atomic_write_json(tmp_path / "results" / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY / "partial.json", marker)
+    [resumed] = plan_profile("smoke", str(runs), only=["mountaincar_ppo"], rates=rates)
+    trial = resumed.trials[0]
+    assert (trial.resumes_at, trial.resumes_from, trial.iterations) == (total // 2, "partial record", total)
+    assert resumed.seconds == pytest.approx(fresh.seconds * (1 - (total // 2) / total))
+    assert f"resumes: mountaincar_ppo seed=0 at iteration {total // 2}/{total} (from its partial record)" in \
+        format_plan([resumed], 1)
+
+    run, _ = make_run(runs, "mountaincar_ppo", 0, "smoke")
+    run.write_json("checkpoints/latest.json", {"model": "ppo-0000001.zip", "progress": {"iteration": 1}, "rng": {}})
+    [local] = plan_profile("smoke", str(runs), only=["mountaincar_ppo"], rates=rates)
+    assert (local.trials[0].resumes_at, local.trials[0].resumes_from) == (1, "run dir")
