@@ -37,6 +37,7 @@ from plls_bench.seeding import seed_everything  # noqa: E402
 from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 
 SECTION = "dbc_throughput"
+LAYOUT_SECTION = "dbc_layouts"
 LAYOUTS = {"contiguous": torch.contiguous_format, "channels_last": torch.channels_last}
 
 
@@ -97,19 +98,25 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for preset in args.presets:
         for threads in args.threads:
+            base = None  # the contiguous layout's CPU s per update, when measured first
             for layout in args.layouts:
                 m = measure(preset, args.budget, threads, args.steps, args.updates, args.runs, layout=layout)
+                base = m["cpu_s"] if layout == "contiguous" else base
+                ratio = f"{base / m['cpu_s']:.2f}x" if base else "—"
                 rows.append(f"| `{preset}` | {threads} | {layout} | {m['env_sps']:.1f} | {m['batch']} | {m['update_s']:.2f} | "
-                            f"{m['cpu_s']:.2f} | **{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
+                            f"{m['cpu_s']:.2f} | {ratio} | **{m['ups']:.2f}** | {m['bytes']:,} / {m['reference_bytes']:,} |")
                 print(rows[-1], flush=True)
+    # a layout comparison is a section of its own: the per-thread table of the suite's layout stays
+    section, what = (SECTION, "") if args.layouts == ["channels_last"] else (LAYOUT_SECTION, " per memory layout")
     finish_section(
-        SECTION, f"DBC updates and env steps per second (`bench/dbc_throughput.py`, budget={args.budget})",
+        section, f"DBC updates and env steps per second{what} (`bench/dbc_throughput.py`, budget={args.budget})",
         command, f"Acting: {args.steps} agent steps (render, stochastic policy, replay insert; no updates), in env "
         f"steps (frames) per second. Updates: median of {args.updates} full DBC updates after 2 warm-up. "
         "CPU s / update is the process time (all threads), less sensitive than wall time to other "
         "processes on a shared machine. Replay bytes per transition: this suite's frame replay / the "
         "reference's layout.",
-        ["preset", "torch threads", "layout", "acting env steps/s", "batch", "s / update", "CPU s / update", "updates/s",
+        ["preset", "torch threads", "layout", "acting env steps/s", "batch", "s / update", "CPU s / update",
+         "update vs contiguous (CPU s)", "updates/s",
          "replay bytes"], rows, write=not args.no_write)
     return 0
 
