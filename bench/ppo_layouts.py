@@ -10,7 +10,8 @@ warm-up iteration, then the ``--iterations`` timed iterations go round-robin ove
 ratios within one run only.
 
 - ``channels_last`` is the suite's layout (``plls_bench/trunks.py``: every conv trunk runs in its
-  conv weights' layout). ``contiguous`` converts the built policy's weights back with
+  conv weights' layout). ``contiguous`` converts the built policy's weights (and V_s's frozen
+  encoder in the latent wrapper, for PL-LS and V_s only) back with
   ``.to(memory_format=torch.contiguous_format)``, which reproduces the layout before that change;
   the uint8 rollout frames and everything else stay as they are, only the memory format changes.
 - ``--precisions`` sets the top-level ``precision`` key (``bf16``: autocast around the trunks).
@@ -37,6 +38,7 @@ from bench.representations import TINY_REPR, prepare_representations  # noqa: E4
 from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS  # noqa: E402
+from plls_bench.latent import latent_modules  # noqa: E402
 from plls_bench.train.ppo import EpisodeStats  # noqa: E402
 from plls_bench.trunks import memory_format  # noqa: E402
 
@@ -57,8 +59,10 @@ def run_settings(preset: str, args: argparse.Namespace) -> list[tuple[str, str, 
             prepare_representations(compose([f"+experiment={preset}", f"budget={args.budget}",
                                              f"runs_dir={args.runs}", "progress=false", *overrides]))
             venv, model, steps = build(preset, args.budget, args.runs, overrides)
-            model.policy.to(memory_format=LAYOUTS[layout])  # in place: the optimizer keeps its parameters
-            assert memory_format(model.policy) == LAYOUTS[layout] or not _has_conv(model.policy), layout
+            # in place, so the optimizer keeps its parameters; V_s's frozen encoder (PL-LS, V_s only) too
+            for module in (model.policy, *latent_modules(venv).values()):
+                module.to(memory_format=LAYOUTS[layout])
+                assert memory_format(module) == LAYOUTS[layout] or not _has_conv(module), layout
             built.append((venv, model, steps, EpisodeStats()))
             iteration(model, steps, built[-1][3])  # warm-up
         samples: list[list[Sample]] = [[] for _ in settings]
@@ -118,7 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         "settings so load drifts hit all alike. "
         + (f"Horizon shortened to n_steps={args.n_steps} per env; " if args.n_steps else "Preset horizon; ")
         + "the update keeps the preset's epochs and minibatch size. `contiguous` converts the built "
-        "policy back to contiguous_format (the layout before every conv trunk ran channels_last); "
+        "policy and V_s's frozen encoder back to contiguous_format (the layout before every conv trunk "
+        "ran channels_last); "
         "uint8 rollout frames stay. CPU s is the process's CPU time per iteration. Ratio: steps/s "
         "over contiguous fp32 in the same run.",
         ["preset", "layout", "precision", "env steps / iteration", "rollout s", "update s", "steps/s",

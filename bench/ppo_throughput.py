@@ -37,7 +37,7 @@ from plls_bench.train.ppo import EpisodeStats  # noqa: E402
 SECTION = "ppo_throughput"
 
 
-Sample = tuple[float, float, float]  # rollout s, total s, process CPU s of one PPO iteration
+Sample = tuple[float, float, float, float]  # rollout s, total s, rollout CPU s, total CPU s of one PPO iteration
 
 
 def build(preset: str, budget: str, runs_dir: str, overrides: Sequence[str] = ()) -> tuple[Any, PPO, int]:
@@ -58,14 +58,15 @@ def iteration(model: PPO, steps: int, stats: EpisodeStats) -> Sample:
     """One PPO iteration (rollout, then the update; no evaluation), timed."""
     start, start_cpu = time.perf_counter(), time.process_time()
     model.learn(steps, callback=stats, reset_num_timesteps=False, log_interval=None)
-    return stats.rollout_end - start, time.perf_counter() - start, time.process_time() - start_cpu
+    return (stats.rollout_end - start, time.perf_counter() - start, stats.rollout_end_cpu - start_cpu,
+            time.process_time() - start_cpu)
 
 
 def summarize(steps: int, samples: list[Sample]) -> dict[str, float]:
     """Medians of ``samples`` as seconds and env steps per second (wall and CPU)."""
-    r, t, c = (statistics.median(column) for column in zip(*samples))
+    r, t, rc, c = (statistics.median(column) for column in zip(*samples))
     return {"steps": steps, "rollout_s": r, "update_s": t - r, "rollout_sps": steps / r, "sps": steps / t,
-            "cpu_s": c, "cpu_sps": steps / c, "threads": torch.get_num_threads()}
+            "cpu_s": c, "cpu_sps": steps / c, "rollout_cpu_sps": steps / rc, "threads": torch.get_num_threads()}
 
 
 def measure(preset: str, budget: str, iterations: int, runs_dir: str,

@@ -11,6 +11,10 @@ evaluation of each PPO and DBC preset (env steps/s, ``train/<preset>``, ``eval/<
 studies (runs/s, ``study/<preset>``). PPO and DBC numbers come from ``bench/ppo_throughput.py``
 and ``bench/dbc_throughput.py`` at shortened horizons. Writes ``bench/throughput.json`` (merged
 with the keys not measured this time) and this script's section of ``BENCHMARKS.md``.
+
+``--clock cpu`` (the default) times work in the process's CPU seconds (all its threads, envpool's
+included), which is what the dry run adds up as CPU-hours and what other load on a shared machine
+disturbs least; ``--clock wall`` times it in wall seconds, as rates measured before 2026-11-25 were.
 """
 from __future__ import annotations
 
@@ -39,6 +43,12 @@ from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_keys as plan_rat
 from plls_bench.runner_specs import runner_spec  # noqa: E402
 
 SECTION = "throughput"
+CLOCKS: dict[str, Callable[[], float]] = {"cpu": time.process_time, "wall": time.perf_counter}
+
+
+def rate_unit(what: str, clock: str) -> str:
+    """``env steps/s`` for wall-clock rates, ``env steps per CPU-s`` for CPU-clock ones."""
+    return f"{what}/s" if clock == "wall" else f"{what} per CPU-s"
 
 
 def _config(preset: str, budget: str, runs_dir: str, *overrides: str) -> Config:
@@ -46,18 +56,18 @@ def _config(preset: str, budget: str, runs_dir: str, *overrides: str) -> Config:
                     *overrides])
 
 
-def collect_rate(cfg: Config, steps: int) -> float:
-    """Env steps per second of random-policy collection (one wave of parallel episodes)."""
+def collect_rate(cfg: Config, steps: int, clock: str) -> float:
+    """Env steps per second of ``clock`` of random-policy collection (one wave of parallel episodes)."""
     from plls_bench.data.collect import collect_random_policy
 
     episodes = cfg.env.data_num_envs
-    start = time.perf_counter()
+    start = CLOCKS[clock]()
     collect_random_policy(cfg.env, episodes, steps, seed=0, progress=False)
-    return episodes * steps / (time.perf_counter() - start)
+    return episodes * steps / (CLOCKS[clock]() - start)
 
 
-def repr_rate(cfg: Config, which: str, samples: int) -> float:
-    """Training samples per second of one V_s / V_a epoch on random inputs of the task's shape."""
+def repr_rate(cfg: Config, which: str, samples: int, clock: str) -> float:
+    """Training samples per second of ``clock`` of one V_s / V_a epoch on random inputs of the task's shape."""
     from plls_bench.devices import resolve_device
     from plls_bench.repr.fit import Split, fit, torch_threads
     from plls_bench.repr.train import action_dim, new_model, training_threads
@@ -74,35 +84,36 @@ def repr_rate(cfg: Config, which: str, samples: int) -> float:
     train, val = Split(array, np.arange(samples)), Split(array, np.arange(samples, samples + 64))
     with tempfile.TemporaryDirectory() as tmp, torch_threads(training_threads(cfg, which)):
         model = new_model(cfg, which, n_actions)
-        start = time.perf_counter()
+        start = CLOCKS[clock]()
         fit(model, train, val, epochs=1, batch_size=mcfg.batch_size, learning_rate=mcfg.learning_rate, seed=0,
             device=resolve_device(cfg.device), resume=Path(tmp) / "resume.pt", progress=False, desc="")
-        return samples / (time.perf_counter() - start)
+        return samples / (CLOCKS[clock]() - start)
 
 
-def study_rate(cfg: Config, runs_dir: str) -> float:
-    """Runs per second of a study (its V_a built beforehand: that is costed as repr_action)."""
+def study_rate(cfg: Config, runs_dir: str, clock: str) -> float:
+    """Runs per second of ``clock`` of a study (its V_a built beforehand: that is costed as repr_action)."""
     from plls_bench.runner import execute
 
     prepare_representations(cfg)
     with tempfile.TemporaryDirectory() as tmp:
-        start = time.perf_counter()
+        start = CLOCKS[clock]()
         execute(cfg, Path(tmp) / "study")
-        return 1.0 / (time.perf_counter() - start)
+        return 1.0 / (CLOCKS[clock]() - start)
 
 
 def _collect(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
-    return [(collect_rate(cfg, args.collect_steps), "env steps/s")]
+    return [(collect_rate(cfg, args.collect_steps, args.clock), rate_unit("env steps", args.clock))]
 
 
 def _repr(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
     samples = {"state": args.state_samples, "action": args.action_samples}
     models = [key.split("/")[0].removeprefix("repr_") for key in keys]  # repr_state/<env> -> state
-    return [(repr_rate(cfg, which, samples[which]), "samples/s") for which in models]
+    return [(repr_rate(cfg, which, samples[which], args.clock), rate_unit("samples", args.clock))
+            for which in models]
 
 
 def _study(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
-    return [(study_rate(cfg, args.runs), "runs/s")]
+    return [(study_rate(cfg, args.runs, args.clock), rate_unit("runs", args.clock))]
 
 
 def _ppo(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
@@ -110,16 +121,19 @@ def _ppo(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[s
     prepare_representations(_config(cfg.experiment, args.budget, args.runs, *TINY_REPR, *horizon, *engine))
     m = ppo_throughput.measure(cfg.experiment, args.budget, args.ppo_iterations, args.runs,
                                [*TINY_REPR, *horizon, *engine])
-    return [(m["sps"], "env steps/s"), (m["rollout_sps"], "env steps/s")]  # eval: acting without updates
+    train, acting = (m["cpu_sps"], m["rollout_cpu_sps"]) if args.clock == "cpu" else (m["sps"], m["rollout_sps"])
+    return [(train, rate_unit("env steps", args.clock)), (acting, rate_unit("env steps", args.clock))]  # eval: acting
 
 
 def _dbc(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
     prepare_representations(_config(cfg.experiment, args.budget, args.runs, *TINY_REPR, *engine))
     m = dbc_throughput.measure(cfg.experiment, args.budget, 1, args.dbc_steps, args.dbc_updates, args.runs,
                                [*TINY_REPR, *engine])
+    acting, update_s = (m["env_cpu_sps"], m["cpu_s"]) if args.clock == "cpu" else (m["env_sps"], m["update_s"])
     # one update per agent step, i.e. per action_repeat env steps
-    seconds_per_env_step = 1.0 / m["env_sps"] + m["update_s"] / cfg.env.action_repeat
-    return [(1.0 / seconds_per_env_step, "env steps/s"), (m["env_sps"], "env steps/s")]
+    seconds_per_env_step = 1.0 / acting + update_s / cfg.env.action_repeat
+    unit = rate_unit("env steps", args.clock)
+    return [(1.0 / seconds_per_env_step, unit), (acting, unit)]
 
 
 class Measurement(NamedTuple):
@@ -185,7 +199,9 @@ def section(data: dict) -> str:
     return "\n".join([
         "## Throughput table for cost estimates (`bench/throughput.py` -> `bench/throughput.json`)", "",
         "`reproduce.sh --dry-run` multiplies each preset's work by these rates. Each row names the "
-        "machine and load it was measured under; re-run the script on your machine for estimates of it.",
+        "machine and load it was measured under; re-run the script on your machine for estimates of it. "
+        "Rates per CPU-s (`--clock cpu`, the default since 2026-11-25) count the process's CPU time, which "
+        "other load disturbs least; rates per s are wall-clock rates of earlier measurements.",
         "", "| key | rate | unit | measured | machine |", "|---|---|---|---|---|", *rows,
         "", "Commands: " + "; ".join(sorted({f"`{e['command']}`" for e in data["rates"].values()}))])
 
@@ -199,6 +215,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="env.backend to measure (envpool: the tasks it ships; keys get @envpool)")
     parser.add_argument("--precision", default="fp32", choices=PRECISIONS,
                         help="precision to measure (bf16: the rates through conv trunks, keys get @bf16)")
+    parser.add_argument("--clock", default="cpu", choices=list(CLOCKS),
+                        help="time work in process CPU seconds (default; what the dry run's CPU-hours add up) "
+                             "or wall seconds")
     parser.add_argument("--collect-steps", type=int, default=200, help="steps per env of collection")
     parser.add_argument("--state-samples", type=int, default=500, help="frames in the V_s epoch")
     parser.add_argument("--action-samples", type=int, default=20000, help="actions in the V_a epoch")

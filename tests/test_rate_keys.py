@@ -57,3 +57,37 @@ def test_a_bf16_plan_uses_bf16_rates_and_never_falls_back_to_fp32(runs_dir: Path
     costed = plan_profile("quick", str(runs_dir), only=quick, rates=both, overrides=("precision=bf16",),
                           count_records=False)[0]
     assert costed.seconds == pytest.approx(2 * fp32.seconds)
+
+
+@pytest.mark.parametrize("clock, train, acting, unit", [
+    ("cpu", 40.0, 400.0, "env steps per CPU-s"),
+    ("wall", 20.0, 200.0, "env steps/s"),
+])
+def test_ppo_rates_come_from_the_chosen_clock(runs_dir: Path, monkeypatch: pytest.MonkeyPatch, clock: str,
+                                              train: float, acting: float, unit: str) -> None:
+    """The dry run adds rates up as CPU-hours: ``--clock cpu`` must hand it the per-CPU-second
+    figures of the measurement, ``--clock wall`` the wall-clock ones (the measurement is stubbed)."""
+    import bench.throughput as throughput
+
+    measured = {"sps": 20.0, "rollout_sps": 200.0, "cpu_sps": 40.0, "rollout_cpu_sps": 400.0}
+    monkeypatch.setattr(throughput, "prepare_representations", lambda cfg: None)
+    monkeypatch.setattr(throughput.ppo_throughput, "measure", lambda *args, **kwargs: measured)
+    cfg = compose_preset("carracing_ppo", runs_dir, "budget=quick")
+    args = throughput.argparse.Namespace(clock=clock, ppo_steps=125, budget="quick", runs=str(runs_dir),
+                                         ppo_iterations=1)
+    assert MEASURES["ppo_iterations"].measure(cfg, rate_keys(cfg), args, ()) == [(train, unit), (acting, unit)]
+
+
+def test_dbc_rates_add_acting_and_update_time_on_the_chosen_clock(
+        runs_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import bench.throughput as throughput
+
+    measured = {"env_sps": 100.0, "update_s": 2.0, "env_cpu_sps": 200.0, "cpu_s": 1.0}
+    monkeypatch.setattr(throughput, "prepare_representations", lambda cfg: None)
+    monkeypatch.setattr(throughput.dbc_throughput, "measure", lambda *args, **kwargs: measured)
+    cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
+    args = throughput.argparse.Namespace(clock="cpu", budget="quick", runs=str(runs_dir), dbc_steps=1, dbc_updates=1)
+    (train, unit), (acting, _) = MEASURES["dbc_steps"].measure(cfg, rate_keys(cfg), args, ())
+    # action repeat 4: one CPU-second update per 4 env steps, plus 1/200 s of acting per env step
+    assert unit == "env steps per CPU-s" and acting == 200.0
+    assert train == pytest.approx(1.0 / (1.0 / 200.0 + 1.0 / cfg.env.action_repeat))

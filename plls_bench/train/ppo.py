@@ -42,7 +42,8 @@ class EpisodeStats(BaseCallback):
         super().__init__()
         self.returns: list[float] = []
         self.lengths: list[int] = []
-        self.rollout_end = 0.0
+        self.rollout_end = 0.0      # perf_counter at the end of the last rollout
+        self.rollout_end_cpu = 0.0  # process_time then: the benches cost rollouts in CPU seconds
 
     def _on_rollout_start(self) -> None:
         self.returns, self.lengths = [], []
@@ -55,7 +56,7 @@ class EpisodeStats(BaseCallback):
         return True
 
     def _on_rollout_end(self) -> None:
-        self.rollout_end = time.perf_counter()
+        self.rollout_end, self.rollout_end_cpu = time.perf_counter(), time.process_time()
 
     def summary(self) -> dict[str, float]:
         if not self.returns:
