@@ -20,7 +20,7 @@ from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, 
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.files import read_json
-from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, plan_profile, plan_sweep
+from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, STATUS_STOPPED, Run, config_hash, variant_overrides
@@ -96,7 +96,7 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
 
 
 def filmed_presets() -> set[str]:
-    """Presets whose first trial is filmed (Figs 11, 19, 22): those a filmstrip config
+    """Presets one of whose trials is filmed (Figs 11, 19, 22): those a filmstrip config
     (``conf/filmstrip/<env>.yaml``) lists, for runners whose spec has a policy to film."""
     return set(_filmstrip_presets())
 
@@ -108,8 +108,8 @@ def _filmstrip_presets() -> dict[str, FilmstripConfig]:
 
 
 def film_policies(plans: list[PresetPlan]) -> list[str]:
-    """Film the first trial of each filmed preset once it is done (``budget.eval_max_steps``
-    caps the episode, as for its test episodes); a filmstrip already made of the same run with
+    """Film the first done trial that holds a policy (:func:`_film_target`) of each filmed preset
+    (``budget.eval_max_steps`` caps the episode, as for its test episodes); a filmstrip already made of the same run with
     the same settings (its done marker, :class:`plls_bench.runs.RunOutput`) is not redone.
     Returns the presets whose filmstrip failed."""
     failed, filmed = [], _filmstrip_presets()
@@ -122,14 +122,13 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
                   f"{plan.runner} has no policy to film", flush=True)
             failed.append(f"{plan.experiment} (filmstrip)")
             continue
-        trial = plan.trials[0]
-        run_hash, cap = config_hash(trial.cfg), trial.cfg.budget.eval_max_steps
-        run = Run(trial.run_dir)
-        if not run.is_done(run_hash) and trial.recorded:
-            run = Run(record_path(trial.run_dir))  # filmed from the record, the strip joins it
-        if not run.is_done(run_hash):
-            print(f"[reproduce] {plan.experiment}: no filmstrip, seed={trial.seed} is not done", flush=True)
+        target = _film_target(plan)
+        if target is None:
+            print(f"[reproduce] {plan.experiment}: no filmstrip, no done trial holds a policy "
+                  f"(seed={plan.trials[0].seed} first)", flush=True)
             continue
+        trial, run = target
+        run_hash, cap = config_hash(trial.cfg), trial.cfg.budget.eval_max_steps
         if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue
@@ -138,6 +137,19 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
         if subprocess.run(command).returncode != 0:
             failed.append(f"{plan.experiment} (filmstrip)")
     return failed
+
+
+def _film_target(plan: PresetPlan) -> tuple[Trial, Run] | None:
+    """The lowest-seed trial that is done, in its run dir or else in its committed record (the strip
+    then joins the record), and holds a policy: a record of a run exported before records carried
+    checkpoints has none, so the next seed's is filmed."""
+    policy_files = runner_spec(plan.runner).load_policy_files
+    for trial in plan.trials:
+        run_hash = config_hash(trial.cfg)
+        for run in (Run(trial.run_dir), *([Run(record_path(trial.run_dir))] if trial.recorded else [])):
+            if run.is_done(run_hash) and (policy_files is None or policy_files()(run.path)):
+                return trial, run
+    return None
 
 
 def _legacy_hash(path: Path) -> str | None:

@@ -1,6 +1,8 @@
 """Filmstrips of trained policies (Figs 11, 19, 22): frames, steps, goal, the CLI on real runs."""
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 import subprocess
 import sys
@@ -124,9 +126,11 @@ def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: 
     plans = plan_profile("smoke", str(tmp_path / "runs"), ["mountaincar_plls_ppo", "mountaincar_ppo"], rates={})
     trial = next(p for p in plans if p.experiment == "mountaincar_plls_ppo").trials[0]
     assert reproduce.film_policies(plans) == [] and commands == []  # not done yet; plain PPO is never filmed
-    assert "mountaincar_plls_ppo: no filmstrip, seed=0 is not done" in capsys.readouterr().out
+    assert "mountaincar_plls_ppo: no filmstrip, no done trial holds a policy (seed=0 first)" in capsys.readouterr().out
     run_hash = config_hash(trial.cfg)
     Run(trial.run_dir).write_status("done", config_hash=run_hash)
+    assert reproduce.film_policies(plans) == [] and commands == []  # done, but no checkpoint to film
+    _fake_checkpoint(trial.run_dir)
     assert reproduce.film_policies(plans) == [] and len(commands) == 1 and str(trial.run_dir) in commands[0]
 
     strip, output = filmstrip_config("mountaincar"), Run(trial.run_dir).output("filmstrip")
@@ -139,3 +143,33 @@ def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: 
         assert reproduce.film_policies(plans) == []
         assert ("filmstrip already made" in capsys.readouterr().out) is made and len(commands) == 2 - made
         output.write("another strip", {"filmstrip.json": {**meta, "settings": {**meta["settings"], "interval": 8}}})
+
+
+def _fake_checkpoint(run_dir: Path) -> None:
+    """A PPO checkpoint's commit point (``latest.json``): what tells the plan a run holds a policy."""
+    (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
+    (run_dir / "checkpoints" / "latest.json").write_text(json.dumps({"model": "ppo-0000001.zip",
+                                                                     "progress": {"iteration": 1}}))
+
+
+def test_reproduce_films_the_first_done_trial_that_holds_a_policy(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A record exported before records carried checkpoints (seed 0 here) has no policy: the next
+    done seed with one is filmed, from its record when its run dir is gone."""
+    from plls_bench import reproduce
+    from plls_bench.plan import plan_profile
+    from plls_bench.records.layout import record_path
+    from plls_bench.runs import Run, config_hash
+
+    commands: list[list[str]] = []
+    monkeypatch.setattr(reproduce.subprocess, "run",
+                        lambda cmd: commands.append(cmd) or subprocess.CompletedProcess(cmd, 0))
+    plan = plan_profile("quick", str(tmp_path / "runs"), ["mountaincar_plls_ppo"], rates={})[0]
+    first, second = plan.trials[:2]
+    Run(first.run_dir).write_status("done", config_hash=config_hash(first.cfg))  # done, no checkpoint
+    record = record_path(second.run_dir)
+    Run(record).write_status("done", config_hash=config_hash(second.cfg))
+    _fake_checkpoint(record)
+    second = dataclasses.replace(second, recorded=True)
+    plan = dataclasses.replace(plan, trials=[first, second, *plan.trials[2:]])
+    assert reproduce.film_policies([plan]) == [] and len(commands) == 1 and str(record) in commands[0]

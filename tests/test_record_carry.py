@@ -185,7 +185,7 @@ def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_r
 @pytest.mark.slow
 def test_a_recorded_dbc_policy_keeps_its_actor_alone_and_films_the_same(
         tmp_path: Path, all_budgets: None, one_torch_thread: None) -> None:
-    from plls_bench.train.dbc_state import POLICY
+    from plls_bench.train.dbc_state import POLICY, policy_files
 
     runs = tmp_path / "results" / "runs"
     run_dir = run_dir_path(runs, "cheetah_plls_dbc", "default", 0)
@@ -195,6 +195,7 @@ def test_a_recorded_dbc_policy_keeps_its_actor_alone_and_films_the_same(
     record = tmp_path / "results" / "records" / "cheetah_plls_dbc" / KEY
     assert (record / POLICY).stat().st_size < (run_dir / "checkpoints" / "dbc.pt").stat().st_size
     assert not list(record.rglob("dbc.pt")) and not list(record.rglob("chunk_*")), "no optimisers, no replay"
+    assert policy_files(record) == {POLICY: (record / POLICY).read_bytes()}, "a record holds a policy to film"
     shutil.rmtree(runs)
     meta = film_run(record, tmp_path / "strip_record", device="cpu", max_steps=20)
     assert meta["checkpoint"] == "dbc_policy.pt" and meta["episode_return"] == original["episode_return"]

@@ -143,6 +143,8 @@ def policy_bytes(run_dir: Path) -> bytes | None:
 
 def policy_files(run_dir: Path) -> dict[str, bytes]:
     """What a record carries to rebuild the policy: the actor's weights alone (no replay); empty
-    without a checkpoint."""
+    without a checkpoint. A record dir (no ``dbc.pt``) gives the :data:`POLICY` file it carries."""
     data = policy_bytes(run_dir)
+    if data is None and (Path(run_dir) / POLICY).is_file():
+        data = (Path(run_dir) / POLICY).read_bytes()
     return {} if data is None else {POLICY: data}
