@@ -166,6 +166,8 @@ def export_run_records(runs_dir: str) -> None:
     done = export_records(runs_dir)
     print(f"[reproduce] records: {done.summary()} under {records_dir_for(runs_dir)} "
           f"(commit them to keep this evidence)", flush=True)
+    for line in done.held:
+        print(f"[reproduce] records: held {line}", flush=True)
     for line in done.skipped:
         print(f"[reproduce] records: skipped {line}", flush=True)
 

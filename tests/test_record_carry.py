@@ -225,3 +225,36 @@ def test_the_dry_run_costs_only_what_a_resumed_trial_has_left(tmp_path: Path) ->
     run.write_json("checkpoints/latest.json", {"model": "ppo-0000001.zip", "progress": {"iteration": 1}, "rng": {}})
     [local] = plan_profile("smoke", str(runs), only=["mountaincar_ppo"], rates=rates)
     assert (local.trials[0].resumes_at, local.trials[0].resumes_from) == (1, "run dir")
+
+
+def test_a_finished_run_never_replaces_a_finished_record_of_another_config(
+        tmp_path: Path, all_budgets: None, one_torch_thread: None) -> None:
+    """A record slot is experiment/variant/seed whatever the budget: a finished trial of another
+    config (a longer budget) is held as a partial record, the next launch of that config in a fresh
+    runs dir restores it as done without a duplicated row, and ``replace`` swaps the records."""
+    records = tmp_path / "results" / "records"
+    configs = {name: ("budget.train_env_steps=2048", f"budget.eval_every_env_steps={every}")
+               for name, every in (("short", 1024), ("other", 2048))}
+    dirs = {name: run_dir_path(tmp_path / name / "runs", "mountaincar_ppo", "default", 0)
+            for name in ("short", "other", "fresh")}
+    cfgs = {name: compose_preset("mountaincar_ppo", d.parents[2], *configs["short" if name == "short" else "other"])
+            for name, d in dirs.items()}
+    for name in ("short", "other"):
+        assert execute(cfgs[name], dirs[name]) == "done"
+    assert export_records(dirs["short"].parents[2], records).written == ["mountaincar_ppo/default/seed=0"]
+
+    held = export_records(dirs["other"].parents[2], records)
+    assert not held.written and held.partial == ["mountaincar_ppo/default/seed=0"] and len(held.held) == 1
+    assert "another config" in held.held[0] and config_hash(cfgs["short"]) in held.held[0]
+    record = Run(records / "mountaincar_ppo" / KEY)
+    assert record.read_config()["config_hash"] == config_hash(cfgs["short"]), "the finished record stays"
+
+    fresh_runs = dirs["fresh"].parents[2]
+    shutil.copytree(records, fresh_runs.parent / "records")  # a fresh clone's records beside its runs dir
+    assert execute(cfgs["fresh"], dirs["fresh"]) == "done"
+    assert _rows(dirs["fresh"], "eval") == _rows(dirs["other"], "eval"), "restored as done, no row twice"
+
+    replaced = export_records(dirs["other"].parents[2], records, replace=True)
+    assert replaced.written == ["mountaincar_ppo/default/seed=0"]
+    assert record.read_config()["config_hash"] == config_hash(cfgs["other"])
+    assert not (records / PARTIAL_DIR / "mountaincar_ppo" / KEY).exists()

@@ -29,10 +29,11 @@ class Exported:
     skipped: list[str] = field(default_factory=list)    # runs or files left out, with the reason
     partial: list[str] = field(default_factory=list)    # unfinished runs written as partial records
     artifacts: list[str] = field(default_factory=list)  # <kind>/<hash> artifacts newly recorded
+    held: list[str] = field(default_factory=list)       # finished runs kept as partial records (see export_records)
 
     def summary(self) -> str:
         return (f"{len(self.written)} written, {self.unchanged} unchanged, {len(self.partial)} partial, "
-                f"{len(self.artifacts)} artifact(s) added, {len(self.skipped)} skipped")
+                f"{len(self.held)} held, {len(self.artifacts)} artifact(s) added, {len(self.skipped)} skipped")
 
 
 def record_files(run_dir: Path) -> list[Path]:
@@ -136,10 +137,15 @@ def export_artifact(runs_root: Path, out: Path, kind: str, name: str) -> tuple[b
     return write_record(out / ARTIFACTS_DIR / kind / name, contents)
 
 
-def export_records(runs_dir: str | Path, records_dir: str | Path | None = None) -> Exported:
+def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, replace: bool = False) -> Exported:
     """Export every run of a non-smoke budget under ``runs_dir`` to ``records_dir``: finished ones
     as records (a partial record of the same run is then removed), unfinished runs as partial
-    records, and the V_s / V_a artifacts of both, once each."""
+    records, and the V_s / V_a artifacts of both, once each.
+
+    A record slot is ``<experiment>/<variant>/seed=<k>``, whatever the budget. A finished run whose
+    slot holds a finished record of another config (a paper-budget trial where a quick one is
+    recorded) never replaces it unless ``replace``: it is held as a partial record instead, which
+    the next launch of its config restores as done, so neither trial is lost."""
     runs_root = Path(runs_dir)
     out = Path(records_dir) if records_dir is not None else records_dir_for(runs_root)
     done, used = Exported(), set()
@@ -149,7 +155,8 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None) 
         if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
             continue
         state = (read_json(run_dir / "status.json") or {}).get("state")
-        if state == STATUS_DONE:
+        other = None if replace or state != STATUS_DONE else _other_done_record(out / key, run_dir)
+        if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
             shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)  # the finished record replaces it
         else:
@@ -158,6 +165,9 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None) 
                 done.skipped.append(f"{key}: status {state} ({carried})")
                 continue
             _count(done, key, carried, done.partial)
+            if other is not None:
+                done.held.append(f"{key}: its record holds a finished trial of another config ({other}); "
+                                 "held as a partial record (--replace replaces the record)")
         try:
             used.update(artifact_names(config))
         except Exception as err:  # a config this version no longer reads: say so, export the rest
@@ -167,6 +177,19 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None) 
         if result is not None:
             _count(done, f"{kind}/{name}", result, done.artifacts, unchanged=False)
     return done
+
+
+def _other_done_record(target: Path, run_dir: Path) -> str | None:
+    """``budget <name>, config <hash>`` of a finished record at ``target`` whose config is not
+    ``run_dir``'s; None when there is none (or it is this run's own)."""
+    status, recorded = read_json(target / "status.json") or {}, read_json(target / "config.json") or {}
+    if status.get("state") != STATUS_DONE:
+        return None
+    theirs, ours = recorded.get("config_hash"), (read_json(run_dir / "config.json") or {}).get("config_hash")
+    if theirs == ours:
+        return None
+    budget = ((recorded.get("config") or {}).get("budget") or {}).get("name")
+    return f"budget {budget}, config {theirs}"
 
 
 def _count(done: Exported, key: str, result: tuple[bool, list[str]], written: list[str],
@@ -185,11 +208,16 @@ def main(argv: list[str] | None = None) -> int:
                                                  "committed records (README: Results collector).")
     parser.add_argument("--runs", default="results/runs", help="root of the run directories (read only)")
     parser.add_argument("--records", default=None, help="records folder (default: 'records' beside --runs)")
+    parser.add_argument("--replace", action="store_true",
+                        help="let a finished run replace a finished record of another config in its slot "
+                             "(default: hold it as a partial record)")
     args = parser.parse_args(argv)
     if not Path(args.runs).is_dir():
         print(f"plls_bench.records: --runs {args.runs} is not a directory", file=sys.stderr)
         return 2
-    done = export_records(args.runs, args.records)
+    done = export_records(args.runs, args.records, replace=args.replace)
+    for line in done.held:
+        print(f"[records] held {line}")
     for key in done.written:
         print(f"[records] wrote {key}")
     for key in done.partial:
