@@ -98,3 +98,31 @@ def test_a_running_trial_does_not_count_and_disjoint_grids_are_not_compared(tmp_
     run, cfg = make_run(tmp_path / "runs", "carracing_ppo", 2, "quick", "budget.trials=3")  # back to running
     table = claims(tmp_path / "runs", tmp_path / "out2")
     assert row(table, FIG18)["reason"] == "needs 3 trials per arm; has 3 + 2"
+
+
+def test_parameter_counts_come_from_an_unfinished_trial_s_partial_record(tmp_path: Path) -> None:
+    # A CNN PPO trial takes sessions: its partial record already holds the counts its architecture fixes.
+    records = tmp_path / "records"
+    run, cfg = make_run(records / "partial", "carracing_ppo", 1)  # the partial record's layout: status running
+    write_params(run, 3_289_768, 1_644_878)
+    write_eval(run, cfg, [0, 4], [[-50.0, -40.0], [-30.0, -20.0]])
+    (tmp_path / "runs").mkdir()
+    render_all(tmp_path / "runs", tmp_path / "out", only=["claims", "table3"], records_dir=records)
+    table = pd.read_csv(tmp_path / "out" / "tables" / "claims.csv").set_index("claim")
+    total = row(table, "PPO: total parameters")
+    assert (total["suite_value"], total["verdict"]) == (3_289_768, "reproduced")
+    assert total["budget"] == "seed 1's unfinished quick-budget trial (partial record)"
+    assert row(table, "PPO: trainable parameters")["suite_value"] == 1_644_878
+    assert row(table, FIG18)["verdict"] == "not run at this budget"  # its returns are no trial of the curves
+    ppo = pd.read_csv(tmp_path / "out" / "tables" / "table3.csv").set_index("experiment").loc["carracing_ppo"]
+    assert (ppo["total_parameters"], ppo["trials"]) == (3_289_768, 0)
+
+
+def test_a_trial_s_own_counts_win_over_a_partial_record_s(tmp_path: Path) -> None:
+    records = tmp_path / "records"
+    run, _ = make_run(records / "partial", "carracing_ppo", 0)
+    write_params(run, 1, 1)
+    arm(tmp_path / "runs", "carracing_ppo", 1, [0, 4], lambda seed, i: 1.0)
+    render_all(tmp_path / "runs", tmp_path / "out", only=["claims"], records_dir=records)
+    total = row(pd.read_csv(tmp_path / "out" / "tables" / "claims.csv").set_index("claim"), "PPO: total parameters")
+    assert total["suite_value"] == 8802 and "partial" not in total["budget"]

@@ -151,11 +151,12 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
     done, used = Exported(), set()
     for run_dir in iter_run_dirs(runs_root):
         key = str(run_dir.relative_to(runs_root))
-        config = (read_json(run_dir / "config.json") or {}).get("config") or {}
+        written = read_json(run_dir / "config.json") or {}
+        config = written.get("config") or {}
         if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
             continue
         state = (read_json(run_dir / "status.json") or {}).get("state")
-        other = None if replace or state != STATUS_DONE else _other_done_record(out / key, run_dir)
+        other = None if replace or state != STATUS_DONE else _other_done_record(out / key, written.get("config_hash"))
         if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
             shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)  # the finished record replaces it
@@ -179,13 +180,13 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
     return done
 
 
-def _other_done_record(target: Path, run_dir: Path) -> str | None:
-    """``budget <name>, config <hash>`` of a finished record at ``target`` whose config is not
-    ``run_dir``'s; None when there is none (or it is this run's own)."""
+def _other_done_record(target: Path, ours: str | None) -> str | None:
+    """``budget <name>, config <hash>`` of a finished record at ``target`` whose config hash is not
+    ``ours`` (the run's); None when there is none (or it is this run's own)."""
     status, recorded = read_json(target / "status.json") or {}, read_json(target / "config.json") or {}
     if status.get("state") != STATUS_DONE:
         return None
-    theirs, ours = recorded.get("config_hash"), (read_json(run_dir / "config.json") or {}).get("config_hash")
+    theirs = recorded.get("config_hash")
     if theirs == ours:
         return None
     budget = ((recorded.get("config") or {}).get("budget") or {}).get("name")

@@ -93,12 +93,14 @@ def _mean_estimate(values: list[float], unit: str, budget: str) -> Estimate:
 
 
 def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Deterministic (the architecture fixes it): one trial suffices."""
+    """Deterministic (the architecture fixes it): one trial suffices, even an unfinished one carried
+    as a partial record."""
     params = parameter_counts(runs, runs.experiment(claim["experiment"]))
     if params is None:
         raise NotJudged(f"no {PARAMS_FILE} in {claim['experiment']}")
-    value = float(params[claim["param"]])
-    return Estimate(value, NAN2, fmt(value), _budget(runs, claim["experiment"]))
+    value = float(params.get(claim["param"]))
+    budget = params.source_text or _budget(runs, claim["experiment"])
+    return Estimate(value, NAN2, fmt(value), budget)
 
 
 def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -208,7 +210,7 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str,
     """(estimate, verdict, reason, budget text) for one claim row."""
     names = [n for n in (claim["experiment"], claim["baseline"]) if n]
     for name in names:
-        budget = runs.experiment(name).budget
+        budget = _run_budget(runs, name, claim["kind"])
         if budget is None:
             return None, NOT_RUN, f"no runs of {name}", None
         if BUDGET_ORDER.index(budget) < BUDGET_ORDER.index(claim["min_budget"]):
@@ -228,6 +230,15 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str,
         basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
     reason = f"suite value {rule_text(claim)}{basis}"
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason, est.budget
+
+
+def _run_budget(runs: Runs, name: str, kind: str) -> str | None:
+    """The budget ``name`` ran at; for a parameter count, an unfinished trial's partial record will do."""
+    budget = runs.experiment(name).budget
+    if budget is None and kind == "param_count":
+        partial = runs.partial_trials(name)
+        budget = partial[0].cfg("budget.name") if partial else None
+    return budget
 
 
 def _is_number(text: str) -> bool:

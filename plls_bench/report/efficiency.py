@@ -4,12 +4,13 @@ numbers from ``results/paper/table{1,2,3}.csv``."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import pandas as pd
 
 from plls_bench.metrics import parallel_envs
 from plls_bench.report.base import Entry, Options, Output, Source
-from plls_bench.report.load import Experiment, Runs
+from plls_bench.report.load import Experiment, Runs, Trial
 from plls_bench.report.returns import Convergence, convergence, load_curves
 from plls_bench.report.stats import CONVERGENCE_TOLERANCE, CONVERGENCE_WINDOW
 from plls_bench.report.tables import NA, Table, fmt, plural, read_paper
@@ -75,22 +76,52 @@ def hyperparameters(runs: Runs, entry: Entry, opts: Options, *, paper: str) -> O
 
 
 # --------------------------------------------------------------------------- Table 3
-def parameter_counts(runs: Runs, exp: Experiment) -> dict | None:
-    """``metrics/params.json`` of the lowest seed that has it; a trial with other counts is a gap."""
+@dataclass(frozen=True)
+class ParameterCounts:
+    """``metrics/params.json``'s counts and the trial they were read from."""
+
+    total: int
+    trainable: int
+    trial: Trial
+
+    def get(self, key: str) -> int:
+        return {"total": self.total, "trainable": self.trainable}[key]
+
+    @property
+    def source_text(self) -> str:
+        """Where the counts come from, for a trial that is not one of the experiment's own."""
+        if self.trial.source != "partial":
+            return ""
+        return (f"seed {self.trial.seed}'s unfinished {self.trial.cfg('budget.name', NA)}-budget trial "
+                f"(partial record)")
+
+
+def parameter_counts(runs: Runs, exp: Experiment) -> ParameterCounts | None:
+    """``metrics/params.json`` of the lowest seed that has it; a trial with other counts is a gap.
+    With no trial, those of an unfinished trial carried as a partial record: the architecture fixes
+    them, so a run knows them in full from its start."""
+    found = _counts(runs, exp, exp.trials)
+    if found is None and not exp.trials:
+        found = _counts(runs, exp, runs.partial_trials(exp.name, exp.variant), gaps=False)
+    if found is None and exp.trials:
+        runs.gap(exp, None, f"no trial has {PARAMS_FILE}")
+    return found
+
+
+def _counts(runs: Runs, exp: Experiment, trials: list[Trial], gaps: bool = True) -> ParameterCounts | None:
     found = None
-    for trial in exp.trials:
+    for trial in trials:
         if not (trial.path / PARAMS_FILE).is_file():
             continue
         params = runs.json(exp, trial, PARAMS_FILE)
         if params is None or not all(isinstance(params.get(k), int) for k in ("total", "trainable")):
-            runs.gap(exp, trial, f"{PARAMS_FILE} lacks integer total/trainable")
+            if gaps:
+                runs.gap(exp, trial, f"{PARAMS_FILE} lacks integer total/trainable")
         elif found is None:
-            found = params
-        elif (params["total"], params["trainable"]) != (found["total"], found["trainable"]):
+            found = ParameterCounts(params["total"], params["trainable"], trial)
+        elif (params["total"], params["trainable"]) != (found.total, found.trainable) and gaps:
             runs.gap(exp, trial, f"{PARAMS_FILE} counts {params['total']}/{params['trainable']} differ "
-                                 f"from the first trial's {found['total']}/{found['trainable']}")
-    if found is None and exp.trials:
-        runs.gap(exp, None, f"no trial has {PARAMS_FILE}")
+                                 f"from the first trial's {found.total}/{found.trainable}")
     return found
 
 
@@ -119,19 +150,21 @@ def _scaled(result: Convergence | None, divisor: float) -> Convergence | None:
 def _efficiency_row(runs: Runs, source: Source, ref: dict[str, str]) -> tuple[list[str], dict]:
     """Table 3's cells and CSV record for one method."""
     exp = runs.experiment(source.experiment)
-    params = parameter_counts(runs, exp) or {}
+    params = parameter_counts(runs, exp)
     conv = {axis: convergence(load_curves(runs, exp, source.label, axis))
             for axis in ("iteration", "env_steps", "env_steps_per_env")}
     conv["sampled_frequency"] = _scaled(conv["env_steps_per_env"], float(parallel_envs(exp.cfg)))
     n = max((c.n for c in conv.values() if c), default=0)
-    cells = [source.label, fmt(params.get("total")), fmt(_paper_number(ref.get("total_parameters"))),
-             fmt(params.get("trainable")), fmt(_paper_number(ref.get("trainable_parameters"))),
+    total, trainable = (params.total, params.trainable) if params else (None, None)
+    cells = [source.label, fmt(total), fmt(_paper_number(ref.get("total_parameters"))),
+             fmt(trainable), fmt(_paper_number(ref.get("trainable_parameters"))),
              fmt_convergence(conv["iteration"]), fmt_convergence(conv["env_steps"]),
              fmt_convergence(conv["env_steps_per_env"]), _paper_text(ref.get("iterations_to_convergence")),
              fmt_convergence(conv["sampled_frequency"]), fmt(_paper_number(ref.get("sampled_frequency"))),
-             str(n), exp.budget or NA]
+             str(n), exp.budget or (f"parameters: {params.source_text}" if params else NA)]
     record = {"model": source.label, "experiment": exp.name, "budget": exp.budget, "trials": n,
-              "total_parameters": params.get("total"), "trainable_parameters": params.get("trainable"),
+              "total_parameters": total, "trainable_parameters": trainable,
+              "parameters_from": params.source_text if params else None,
               **{f"paper_{k}": ref.get(k) for k in ("total_parameters", "trainable_parameters",
                                                      "iterations_to_convergence", "sampled_frequency")}}
     for axis, result in conv.items():

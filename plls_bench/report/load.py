@@ -6,7 +6,8 @@ in that view, so the id reports exactly the gaps that touch it. Only the files l
 README's "What each runner writes" table are read.
 
 Trials come from the runs dir and from the committed records (``plls_bench/records/``; partial
-records, under ``records/partial/``, are never read: only ``<records>/<experiment>/<variant>``). A local
+records, under ``records/partial/``, are not trials: only ``<records>/<experiment>/<variant>``; see
+:meth:`Runs.partial_trials` for the one thing read from them). A local
 run replaces the record of the same seed when their configs agree; otherwise both compete as
 groups of one config. A group that can be judged (:data:`MIN_TRIALS` finished trials at a budget
 records keep) wins over one that cannot, then the highest budget, then the largest, then the local
@@ -27,7 +28,7 @@ from plls_bench.config.learning import BUDGET_NAMES
 from plls_bench.config.tasks import ENV_BACKENDS
 from plls_bench.files import read_json, scan_jsonl
 from plls_bench.hashing import stable_hash
-from plls_bench.records.layout import EXCLUDED_BUDGETS
+from plls_bench.records.layout import EXCLUDED_BUDGETS, PARTIAL_DIR
 from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
                              variant_name)
 
@@ -77,7 +78,7 @@ class Trial:
     path: Path
     state: str  # done | running | failed | unknown (no readable status.json)
     config: dict[str, Any]
-    source: str = "run"  # run (under the runs dir) | record (committed, under the records dir)
+    source: str = "run"  # run (under the runs dir) | record (committed, under the records dir) | partial
 
     def cfg(self, dotted: str, default: Any = None) -> Any:
         """A value of the run's resolved config by dotted key, e.g. ``algo.ppo.n_envs``."""
@@ -200,6 +201,23 @@ class Runs:
             if missing:
                 self.gap(exp, None, f"seed(s) {', '.join(map(str, missing))} missing "
                                     f"(budget.trials={expected})")
+
+    def partial_trials(self, name: str, variant: str = DEFAULT_VARIANT) -> list[Trial]:
+        """Unfinished trials carried as partial records (``<records>/partial/<name>/<variant>``),
+        lowest seed first, whatever their budget. They are never among :meth:`experiment`'s trials
+        (a curve that stops mid-way is no evidence); they serve what a started run knows in full:
+        the parameter counts its architecture fixes."""
+        roots = [] if self.records_root is None else [self.records_root / PARTIAL_DIR / name / v
+                                                      for v in variant_dirs(variant)]
+        found = []
+        for root in (r for r in roots if r.is_dir()):
+            for path in sorted(root.iterdir(), key=_seed_order):
+                match, config = _SEED_DIR.match(path.name), read_json(path / "config.json")
+                if match and path.is_dir() and isinstance(config, dict) and isinstance(config.get("config"), dict):
+                    status = read_json(path / "status.json")
+                    state = status.get("state", "unknown") if isinstance(status, dict) else "unknown"
+                    found.append(Trial(int(match.group(1)), path, state, config["config"], "partial"))
+        return sorted(found, key=lambda t: t.seed)
 
     # files --------------------------------------------------------------------
     def records(self, exp: Experiment, trial: Trial, stream: str) -> list[dict[str, Any]]:
