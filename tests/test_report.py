@@ -20,7 +20,7 @@ from plls_bench.report.base import Options
 from plls_bench.report.claims import verdict
 from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
 from plls_bench.report.load import Runs
-from plls_bench.report.plot import DPI
+from plls_bench.report.plot import DPI, TITLE_CHARS_PER_INCH, new_figure, suptitle
 from tests.conftest import REPO_ROOT
 from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_npz,
                                   write_params, write_repr)
@@ -251,7 +251,7 @@ def test_every_registry_id_renders_from_synthetic_runs(tmp_path: Path) -> None:
 
 
 def test_output_check_catches_a_wrong_size_and_a_blank_image(tmp_path: Path) -> None:
-    from plls_bench.report.plot import new_figure, save_figure
+    from plls_bench.report.plot import save_figure
 
     (tmp_path / "runs").mkdir()
     statuses = render_all(tmp_path / "runs", tmp_path / "out", only=["fig18", "fig21"])  # no runs: placeholders
@@ -320,3 +320,12 @@ def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: p
     assert report_main(args) == 2
     assert "claims.csv line 2: unknown kind 'repr_mse_typo'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_long_figure_title_is_wrapped_to_the_figure_width_not_clipped() -> None:
+    fig = new_figure((4.0, 3.0))
+    suptitle(fig, "Fig. 10", "MountainCar, average return (SB3 Gaussian exploration, the literal reading) "
+             "(budget paper)", {"PL-LS + PPO": 3, "PPO": 3})
+    lines = fig.get_suptitle().split("\n")
+    assert len(lines) >= 3 and max(map(len, lines)) <= 4 * TITLE_CHARS_PER_INCH
+    assert " ".join(lines).startswith("Fig. 10 (suite): MountainCar, average return (SB3 Gaussian")

@@ -48,14 +48,23 @@ def trials_text(trials: dict[str, int], unit: str = "trial") -> str:
     return ", ".join(f"{label}: {plural(n, unit)}" for label, n in trials.items())
 
 
+# Characters of a 10-point title per inch of figure width: a longer line is wrapped, not clipped.
+TITLE_CHARS_PER_INCH = 13
+
+
+def _title(fig: Figure, text: str) -> None:
+    width = max(20, int(fig.get_figwidth() * TITLE_CHARS_PER_INCH))
+    fig.suptitle("\n".join(textwrap.fill(line, width) for line in text.split("\n")), fontsize=10)
+
+
 def suptitle(fig: Figure, ref: str, title: str, trials: dict[str, int], unit: str = "trial") -> None:
-    fig.suptitle(f"{ref} (suite): {title}\n{trials_text(trials, unit)}", fontsize=10)
+    _title(fig, f"{ref} (suite): {title}\n{trials_text(trials, unit)}")
 
 
 def placeholder(size: tuple[float, float], ref: str, title: str, problems: list[str]) -> Figure:
     """A figure saying there is nothing to draw and why (it keeps the index complete)."""
     fig = new_figure(size)
-    fig.suptitle(f"{ref} (suite): {title}\nno data: 0 trials", fontsize=10)
+    _title(fig, f"{ref} (suite): {title}\nno data: 0 trials")
     ax = fig.add_subplot()
     ax.set_axis_off()
     lines = [textwrap.shorten(p, 110) for p in problems[:8]] + (["..."] if len(problems) > 8 else [])
