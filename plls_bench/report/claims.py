@@ -98,7 +98,7 @@ def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
     params = parameter_counts(runs, runs.experiment(claim["experiment"]))
     if params is None:
         raise NotJudged(f"no {PARAMS_FILE} in {claim['experiment']}")
-    value = float(params.get(claim["param"]))
+    value = float(getattr(params, claim["param"]))
     budget = params.source_text or _budget(runs, claim["experiment"])
     return Estimate(value, NAN2, fmt(value), budget)
 
@@ -235,9 +235,9 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str,
 def _run_budget(runs: Runs, name: str, kind: str) -> str | None:
     """The budget ``name`` ran at; for a parameter count, an unfinished trial's partial record will do."""
     budget = runs.experiment(name).budget
-    if budget is None and kind == "param_count":
-        partial = runs.partial_trials(name)
-        budget = partial[0].cfg("budget.name") if partial else None
+    if budget is None and kind == "param_count":  # the trial parameter_counts reads them from
+        counts = parameter_counts(runs, runs.experiment(name))
+        budget = counts.trial.cfg("budget.name") if counts else None
     return budget
 
 

@@ -84,9 +84,6 @@ class ParameterCounts:
     trainable: int
     trial: Trial
 
-    def get(self, key: str) -> int:
-        return {"total": self.total, "trainable": self.trainable}[key]
-
     @property
     def source_text(self) -> str:
         """Where the counts come from, for a trial that is not one of the experiment's own."""

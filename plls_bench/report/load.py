@@ -168,13 +168,12 @@ class Runs:
             self.gap(exp, probe, "config.json missing or unreadable: run excluded")
             return None
         status = read_json(path / "status.json")
-        state = status.get("state", "unknown") if isinstance(status, dict) else "unknown"
-        trial = Trial(seed, path, state, config["config"], source)
+        trial = Trial(seed, path, _state(status), config["config"], source)
         if status is None:
             self.gap(exp, trial, "status.json missing or unreadable: state unknown, data used as is")
-        elif state != STATUS_DONE:
+        elif trial.state != STATUS_DONE:
             error = f" ({status.get('error')})" if status.get("error") else ""
-            self.gap(exp, trial, f"status {state}{error}: data used as far as they go")
+            self.gap(exp, trial, f"status {trial.state}{error}: data used as far as they go")
         return trial
 
     def _consistent(self, exp: Experiment, trials: list[Trial]) -> list[Trial]:
@@ -214,8 +213,7 @@ class Runs:
             for path in sorted(root.iterdir(), key=_seed_order):
                 match, config = _SEED_DIR.match(path.name), read_json(path / "config.json")
                 if match and path.is_dir() and isinstance(config, dict) and isinstance(config.get("config"), dict):
-                    status = read_json(path / "status.json")
-                    state = status.get("state", "unknown") if isinstance(status, dict) else "unknown"
+                    state = _state(read_json(path / "status.json"))
                     found.append(Trial(int(match.group(1)), path, state, config["config"], "partial"))
         return sorted(found, key=lambda t: t.seed)
 
@@ -286,6 +284,11 @@ def _judgeable(group: list[Trial]) -> bool:
 def _budget_rank(trial: Trial) -> int:
     budget = trial.cfg("budget.name")
     return BUDGET_NAMES.index(budget) if budget in BUDGET_NAMES else -1
+
+
+def _state(status: Any) -> str:
+    """A status.json's state; ``unknown`` when it is missing or unreadable."""
+    return status.get("state", "unknown") if isinstance(status, dict) else "unknown"
 
 
 def _seed_order(path: Path) -> tuple[int, str]:
