@@ -27,10 +27,9 @@ import numpy as np
 from plls_bench.config.learning import BUDGET_NAMES
 from plls_bench.config.tasks import ENV_BACKENDS
 from plls_bench.files import read_json, scan_jsonl
-from plls_bench.hashing import stable_hash
 from plls_bench.records.layout import EXCLUDED_BUDGETS, PARTIAL_DIR
-from plls_bench.runs import (HASH_EXCLUDED_KEYS, HASH_NEUTRAL_DEFAULTS, HASH_PINNED_KEYS, STATUS_DONE, hashed_config,
-                             variant_name)
+from plls_bench.report.identity import config_diff, pooling_identity
+from plls_bench.runs import STATUS_DONE, variant_name
 
 # The fewest finished trials per arm from which a claim about a stochastic quantity (a return, a
 # convergence point, a trained model's MSE) is judged. A 95% bootstrap CI over one trial does not
@@ -181,7 +180,7 @@ class Runs:
         (:func:`_judgeable`), then the highest budget, then the most trials, then local runs over records."""
         groups: dict[str, list[Trial]] = {}
         for trial in trials:
-            groups.setdefault(_identity(trial.config), []).append(trial)
+            groups.setdefault(pooling_identity(trial.config), []).append(trial)
         if len(groups) <= 1:
             return sorted(trials, key=lambda t: t.seed)
         keep = max(groups.values(),
@@ -189,7 +188,7 @@ class Runs:
         for group in groups.values():
             if group is not keep:
                 for trial in group:
-                    diff = ", ".join(_diff(keep[0].config, trial.config)[:3])
+                    diff = ", ".join(config_diff(keep[0].config, trial.config)[:3])
                     self.gap(exp, trial, f"config differs from seed={keep[0].seed}'s ({diff}): excluded")
         return sorted(keep, key=lambda t: t.seed)
 
@@ -270,8 +269,8 @@ class Runs:
 def _replaced(trial: Trial, candidates: list[Trial]) -> bool:
     """True when a local run of the same seed and config is already among ``candidates`` (local
     runs are scanned first and win over their records)."""
-    ident = _identity(trial.config)
-    return any(c.seed == trial.seed and _identity(c.config) == ident for c in candidates)
+    ident = pooling_identity(trial.config)
+    return any(c.seed == trial.seed and pooling_identity(c.config) == ident for c in candidates)
 
 
 def _judgeable(group: list[Trial]) -> bool:
@@ -295,31 +294,6 @@ def _seed_order(path: Path) -> tuple[int, str]:
     """seed=2 before seed=10; odd names last."""
     match = _SEED_DIR.match(path.name)
     return (int(match.group(1)), "") if match else (1 << 62, path.name)
-
-
-# Trials of one experiment may differ in these and still be pooled: the device a seed ran on too.
-_NOT_IDENTITY = (*HASH_EXCLUDED_KEYS, *HASH_PINNED_KEYS, "seed")
-
-
-def _identity(config: dict[str, Any]) -> str:
-    return stable_hash(hashed_config(config, _NOT_IDENTITY))
-
-
-def _flatten(node: Any, prefix: str = "") -> dict[str, Any]:
-    if not isinstance(node, dict):
-        return {prefix: node}
-    out: dict[str, Any] = {}
-    for key, value in node.items():
-        out.update(_flatten(value, f"{prefix}.{key}" if prefix else str(key)))
-    return out
-
-
-def _diff(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
-    fa, fb = _flatten(a), _flatten(b)
-    keys = [k for k in sorted(set(fa) | set(fb))
-            if fa.get(k, HASH_NEUTRAL_DEFAULTS.get(k)) != fb.get(k, HASH_NEUTRAL_DEFAULTS.get(k))
-            and k.split(".")[0] not in _NOT_IDENTITY]
-    return [f"{k}: {fa.get(k)!r} vs {fb.get(k)!r}" for k in keys]
 
 
 def _fits(shape: tuple[int, ...], want: tuple[int | None, ...]) -> bool:

@@ -135,7 +135,8 @@ def policy_bytes(run_dir: Path) -> bytes | None:
     path = Path(run_dir) / CHECKPOINT
     if not path.exists():
         return None
-    state = torch.load(path, map_location="cpu", weights_only=True)
+    # mmap: only the actor's storages are read, not the whole checkpoint (its replay is ~100 MiB)
+    state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
     buffer = io.BytesIO()
     torch.save(state["agent"]["modules"]["actor"], buffer)
     return buffer.getvalue()
