@@ -12,6 +12,11 @@ studies (runs/s, ``study/<preset>``). PPO and DBC numbers come from ``bench/ppo_
 and ``bench/dbc_throughput.py`` at shortened horizons. Writes ``bench/throughput.json`` (merged
 with the keys not measured this time) and this script's section of ``BENCHMARKS.md``.
 
+``--compare`` measures the same keys but leaves ``bench/throughput.json`` alone: it writes a section
+of ``BENCHMARKS.md`` with each key's rate here beside the table's, the machine each was measured on
+and their ratio, so a campaign on another kind of machine knows how far the dry run's CPU-hours
+apply there (rates measured per wall second are compared but flagged: their ratio mixes clocks).
+
 ``--clock cpu`` (the default) times work in the process's CPU seconds (all its threads, envpool's
 included), which is what the dry run adds up as CPU-hours and what other load on a shared machine
 disturbs least; ``--clock wall`` times it in wall seconds, as rates measured before 2026-11-25 were.
@@ -43,6 +48,7 @@ from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_keys as plan_rat
 from plls_bench.runner_specs import runner_spec  # noqa: E402
 
 SECTION = "throughput"
+COMPARE_SECTION = "throughput_compare"  # one per --backend: a run measures one backend's keys
 CLOCKS: dict[str, Callable[[], float]] = {"cpu": time.process_time, "wall": time.perf_counter}
 
 
@@ -206,6 +212,35 @@ def section(data: dict) -> str:
         "", "Commands: " + "; ".join(sorted({f"`{e['command']}`" for e in data["rates"].values()}))])
 
 
+def compare_section(backend: str) -> str:
+    return COMPARE_SECTION if backend == "gymnasium" else f"{COMPARE_SECTION}_{backend}"
+
+
+def comparison(rates: dict[str, tuple[float, str]], command: str, host: str, backend: str = "gymnasium") -> str:
+    """A BENCHMARKS section: each measured key's rate here beside ``bench/throughput.json``'s."""
+    try:
+        table = json.loads(THROUGHPUT_FILE.read_text())["rates"]
+    except (OSError, ValueError):
+        table = {}
+    rows = []
+    for key, (value, unit) in sorted(rates.items()):
+        ref = table.get(key)
+        if ref is None:
+            rows.append(f"| `{key}` | {value:,.4g} {unit} | (not in the table) | | |")
+            continue
+        flag = "" if ref["unit"] == unit else " (clocks differ)"
+        rows.append(f"| `{key}` | {value:,.4g} {unit} | {ref['value']:,.4g} {ref['unit']} | "
+                    f"{value / ref['value']:.2f}{flag} | {ref['date']}, {ref['machine']} |")
+    return "\n".join([
+        f"## This machine against the throughput table (`bench/throughput.py --compare`, {backend})", "",
+        f"Command: `{command}`  ", f"Machine: {host}  ",
+        "Each key measured here beside the rate `reproduce.sh --dry-run` uses (`bench/throughput.json`, not "
+        "changed by this run). Ratio = here / table: the dry run's CPU-hours for that work are about "
+        "1 / ratio times too low on this machine. Ratios across machines are not measured in one run; "
+        "read them as a planning factor, not a speed-up.",
+        "", "| key | here | table | ratio | table measured on |", "|---|---|---|---|---|", *rows])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--presets", nargs="+", default=None, help="presets to measure (default: all)")
@@ -228,6 +263,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", default=str(Path(tempfile.gettempdir()) / "plls_bench_throughput"),
                         help="runs_dir for the artifacts the measurements need")
     parser.add_argument("--no-write", action="store_true", help="print only")
+    parser.add_argument("--compare", action="store_true",
+                        help="leave bench/throughput.json alone: write this machine's rates beside the table's "
+                             "(BENCHMARKS.md section throughput_compare, one per --backend)")
     args = parser.parse_args(argv)
     command = announce("throughput.py", argv)
     rates: dict[str, tuple[float, str]] = {}
@@ -235,6 +273,12 @@ def main(argv: list[str] | None = None) -> int:
         for key, (value, unit) in preset_rates(preset, args).items():
             rates[key] = (value, unit)
             print(f"{key:40s} {value:12,.4g} {unit}", flush=True)
+    if args.compare:
+        text = comparison(rates, command, machine(), args.backend)
+        print(text, flush=True)
+        if not args.no_write:
+            write_section(compare_section(args.backend), text)
+        return 0
     data = merged(rates, command, machine())
     if not args.no_write:
         atomic_write_json(THROUGHPUT_FILE, data)

@@ -91,3 +91,30 @@ def test_dbc_rates_add_acting_and_update_time_on_the_chosen_clock(
     # action repeat 4: one CPU-second update per 4 env steps, plus 1/200 s of acting per env step
     assert unit == "env steps per CPU-s" and acting == 200.0
     assert train == pytest.approx(1.0 / (1.0 / 200.0 + 1.0 / cfg.env.action_repeat))
+
+
+def test_compare_writes_ratios_beside_the_table_and_leaves_the_table_alone(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--compare`` on another machine: each measured key beside the table's rate with their ratio,
+    a wall-clock table row flagged, a key the table lacks named; ``bench/throughput.json`` unchanged."""
+    import json
+
+    import bench.throughput as throughput
+
+    table = tmp_path / "throughput.json"
+    rates = {"train/a": {"value": 600.0, "unit": "env steps per CPU-s", "date": "d", "machine": "xeon"},
+             "train/b": {"value": 6000.0, "unit": "env steps/s", "date": "d", "machine": "old"}}
+    table.write_text(json.dumps({"rates": rates}))
+    before = table.read_bytes()
+    written: dict[str, str] = {}
+    monkeypatch.setattr(throughput, "THROUGHPUT_FILE", table)
+    monkeypatch.setattr(throughput, "write_section", lambda section, text: written.update({section: text}))
+    measured = {"train/a": (300.0, "env steps per CPU-s"), "train/b": (2400.0, "env steps per CPU-s"),
+                "train/c": (5.0, "env steps per CPU-s")}
+    monkeypatch.setattr(throughput, "preset_rates", lambda preset, args: measured)
+    assert throughput.main(["--presets", "p", "--compare"]) == 0
+    assert table.read_bytes() == before
+    text = written[throughput.compare_section("gymnasium")]
+    assert "| `train/a` | 300 env steps per CPU-s | 600 env steps per CPU-s | 0.50 | d, xeon |" in text
+    assert "| 0.40 (clocks differ) |" in text
+    assert "| `train/c` | 5 env steps per CPU-s | (not in the table) |" in text
