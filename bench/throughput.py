@@ -186,12 +186,17 @@ def preset_rates(preset: str, args: argparse.Namespace) -> dict[str, tuple[float
     return dict(zip(keys, measure(cfg, keys, args, engine)))
 
 
+def read_table() -> dict:
+    """``bench/throughput.json``, or an empty table when it is missing or unreadable."""
+    try:
+        return json.loads(THROUGHPUT_FILE.read_text())
+    except (OSError, ValueError):
+        return {"rates": {}}
+
+
 def merged(rates: dict[str, tuple[float, str]], command: str, host: str) -> dict:
     """``bench/throughput.json`` with ``rates`` replacing their keys (the others are kept)."""
-    try:
-        data = json.loads(THROUGHPUT_FILE.read_text())
-    except (OSError, ValueError):
-        data = {"rates": {}}
+    data = read_table()
     stamp = {"date": date.today().isoformat(), "command": command, "machine": host}
     for key, (value, unit) in rates.items():
         data["rates"][key] = {"value": round(value, 4), "unit": unit, **stamp}
@@ -218,10 +223,7 @@ def compare_section(backend: str) -> str:
 
 def comparison(rates: dict[str, tuple[float, str]], command: str, host: str, backend: str = "gymnasium") -> str:
     """A BENCHMARKS section: each measured key's rate here beside ``bench/throughput.json``'s."""
-    try:
-        table = json.loads(THROUGHPUT_FILE.read_text())["rates"]
-    except (OSError, ValueError):
-        table = {}
+    table = read_table()["rates"]
     rows = []
     for key, (value, unit) in sorted(rates.items()):
         ref = table.get(key)
