@@ -15,10 +15,12 @@ from plls_bench.devices import cpu_model, device_name, resolve_device
 PACKAGES = ("plls-bench", "torch", "numpy", "gymnasium", "stable-baselines3", "mujoco",
             "dm-control", "hydra-core", "omegaconf", "box2d", "cvxpy")
 REPO_ROOT = Path(__file__).resolve().parent.parent
+SOURCE_SHA_VAR = "PLLS_BENCH_SOURCE_SHA"  # read only where no git checkout is found (git_state)
 
 
 def git_state(repo: Path = REPO_ROOT) -> dict[str, Any]:
-    """Commit sha and whether the working tree has uncommitted changes (None outside git)."""
+    """Commit sha and whether the working tree has uncommitted changes (None outside git, where
+    ``$PLLS_BENCH_SOURCE_SHA``, if set, names the commit the code was copied from)."""
     def git(*args: str) -> str | None:
         try:
             out = subprocess.run(["git", "-C", str(repo), *args], capture_output=True, text=True,
@@ -28,6 +30,10 @@ def git_state(repo: Path = REPO_ROOT) -> dict[str, Any]:
         return out.stdout.strip()
 
     sha = git("rev-parse", "HEAD")
+    if sha is None and os.environ.get(SOURCE_SHA_VAR):
+        # A copy of the code without .git (a container, a cluster node's rsync): the launcher
+        # names the commit it copied; the dirty flag stays unknown, and the record says whence.
+        return {"git_sha": os.environ[SOURCE_SHA_VAR], "git_dirty": None, "git_sha_from": SOURCE_SHA_VAR}
     status = git("status", "--porcelain", "--untracked-files=no")
     return {"git_sha": sha, "git_dirty": None if status is None else bool(status)}
 

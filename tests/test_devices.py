@@ -131,3 +131,17 @@ def test_dbc_checkpoint_from_a_gpu_loads_with_map_location(no_gpu: None, saved_a
     for name, module in agent.modules().items():
         for a, b in zip(module.state_dict().values(), other.modules()[name].state_dict().values()):
             assert b.device.type == "cpu" and torch.equal(a, b), name
+
+
+def test_a_copy_without_git_records_the_commit_its_launcher_names(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Outside a checkout the sha comes from $PLLS_BENCH_SOURCE_SHA, marked as such and never
+    claimed clean; inside one the variable is ignored, so it cannot mask a dirty tree."""
+    from plls_bench.provenance import SOURCE_SHA_VAR, git_state
+
+    monkeypatch.delenv(SOURCE_SHA_VAR, raising=False)
+    assert git_state(tmp_path) == {"git_sha": None, "git_dirty": None}
+    monkeypatch.setenv(SOURCE_SHA_VAR, "0123abc")
+    assert git_state(tmp_path) == {"git_sha": "0123abc", "git_dirty": None, "git_sha_from": SOURCE_SHA_VAR}
+    inside = git_state()
+    assert inside["git_sha"] != "0123abc" and "git_sha_from" not in inside
