@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from baselines.dbc import Batch, DBCAgent
+from baselines.dbc.bisim import latent_batch_std
 from tests.conftest import compose_preset
 
 STEPS = 600  # measured: 0.97 after 600 updates, a random policy 0.17-0.22
@@ -49,7 +50,13 @@ def test_actor_and_targets_update_every_second_agent_step(runs_dir: Path) -> Non
     assert changed(actor, agent.actor.trunk) and changed(target, agent.critic_target)
     assert agent.log_alpha.item() != alpha
     assert {"loss/critic", "loss/actor", "loss/alpha", "loss/encoder_bisim", "loss/transition",
-            "loss/reward"} <= set(metrics)
+            "loss/reward", "train/latent_batch_std"} <= set(metrics)
+
+
+def test_latent_batch_std_reads_zero_for_a_collapsed_encoder_and_not_for_a_spread_one() -> None:
+    spread = torch.nn.functional.layer_norm(torch.randn(128, 50), (50,))
+    collapsed = spread[:1].expand(128, 50) + 1e-6 * torch.randn(128, 50)
+    assert latent_batch_std(collapsed) < 1e-4 < 0.5 < latent_batch_std(spread)
 
 
 def test_actor_loss_never_trains_the_shared_conv_trunk(runs_dir: Path) -> None:

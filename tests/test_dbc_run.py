@@ -19,7 +19,8 @@ from tests.conftest import REPO_ROOT, compose_preset
 # smoke budget: 400 env steps (100 agent steps at action repeat 4), evaluations every 200
 EVAL_STEPS = [0, 200, 400]
 TRAIN_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "loss/critic", "loss/actor", "loss/alpha",
-              "loss/encoder_bisim", "loss/transition", "loss/reward", "perf/updates_per_s", "perf/env_steps_per_s"}
+              "loss/encoder_bisim", "loss/transition", "loss/reward", "train/latent_batch_std", "perf/updates_per_s",
+              "perf/env_steps_per_s"}
 
 
 def cli(runs_dir: Path, *overrides: str, experiment: str = "cheetah_dbc") -> list[str]:

@@ -17,7 +17,7 @@ from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, config_hash
 from tests.conftest import REPO_ROOT, compose_preset
 
 STATE_DIM = 17  # cheetah-run: position (8) + velocity (9)
-REPRESENTATION_LOSSES = {"loss/encoder_bisim", "loss/transition", "loss/reward"}
+REPRESENTATION_METRICS = {"loss/encoder_bisim", "loss/transition", "loss/reward", "train/latent_batch_std"}
 
 
 def state_agent(runs_dir: Path, obs_dim: int = STATE_DIM) -> DBCAgent:
@@ -57,7 +57,7 @@ def test_state_sac_has_no_encoder_and_no_representation_models(runs_dir: Path) -
     assert agent.actor.trunk[0].in_features == STATE_DIM and agent.critic.q1[0].in_features == STATE_DIM + 6
     before = copy.deepcopy(agent.critic_target)
     metrics = agent.update(state_batch(), step=2)
-    assert not REPRESENTATION_LOSSES & set(metrics) and {"loss/critic", "loss/actor", "loss/alpha"} <= set(metrics)
+    assert not REPRESENTATION_METRICS & set(metrics) and {"loss/critic", "loss/actor", "loss/alpha"} <= set(metrics)
     assert not torch.equal(before.q1[0].weight, agent.critic_target.q1[0].weight), "targets still updated"
 
 
@@ -111,7 +111,7 @@ def test_cheetah_sac_state_end_to_end_at_smoke(runs_dir: Path) -> None:
     assert [r["env_steps"] for r in evals] == [0, 200, 400]
     assert all(r["agent_steps"] == r["env_steps"] and r["episode_lengths"] == [50] for r in evals), "action repeat 1"
     train = read_jsonl(run_dir / "metrics" / "train.jsonl")
-    assert "loss/critic" in train[-1] and not REPRESENTATION_LOSSES & set(train[-1])
+    assert "loss/critic" in train[-1] and not REPRESENTATION_METRICS & set(train[-1])
     params = read_json(run_dir / PARAMS_FILE)
     assert set(params["modules"]) == {"actor", "critic", "critic_target"}
     architecture = read_json(run_dir / ARCHITECTURE_FILE)

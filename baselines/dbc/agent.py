@@ -19,7 +19,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from baselines.dbc.bisim import bisimulation_loss, reward_loss, transition_loss
+from baselines.dbc.bisim import bisimulation_loss, latent_batch_std, reward_loss, transition_loss
 from baselines.dbc.encoder import Encoder, IdentityEncoder, make_trunk, weight_init
 from baselines.dbc.hyperparameters import Hyperparameters
 from baselines.dbc.models import Actor, Critic, TransitionModel, reward_decoder
@@ -150,7 +150,7 @@ class DBCAgent:
         total = self.cfg.bisim_coef * l_bisim + l_trans + l_reward
         self._step(("encoder", "decoder"), total)
         return {"loss/encoder_bisim": l_bisim.item(), "loss/transition": l_trans.item(),
-                "loss/reward": l_reward.item()}
+                "loss/reward": l_reward.item(), "train/latent_batch_std": latent_batch_std(z)}
 
     def update_actor_and_alpha(self, obs: torch.Tensor) -> dict[str, float]:
         with torch.no_grad():  # the actor never trains the shared trunk (detach_encoder in the reference)

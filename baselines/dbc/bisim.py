@@ -58,3 +58,12 @@ def reward_loss(z: torch.Tensor, action: torch.Tensor, reward: torch.Tensor,
                 transition: TransitionModel, decoder: torch.nn.Module) -> torch.Tensor:
     """MSE of the reward ``(B, 1)`` decoded from a sampled predicted next latent."""
     return F.mse_loss(decoder(transition.sample(z, action)), reward)
+
+
+def latent_batch_std(z: torch.Tensor) -> float:
+    """Spread of a batch of latents ``(B, Z)``: the std over the batch, averaged over dimensions.
+
+    Not part of DBC's losses: a diagnostic. The latent is LayerNorm'd per sample, so its norm
+    says nothing. An encoder that maps every observation to the same latent (the bisimulation
+    loss is satisfied by that when reward differences are small) reads about 0 here."""
+    return float(z.detach().std(dim=0).mean())
