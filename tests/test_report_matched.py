@@ -126,3 +126,28 @@ def test_a_trial_s_own_counts_win_over_a_partial_record_s(tmp_path: Path) -> Non
     render_all(tmp_path / "runs", tmp_path / "out", only=["claims"], records_dir=records)
     total = row(pd.read_csv(tmp_path / "out" / "tables" / "claims.csv").set_index("claim"), "PPO: total parameters")
     assert total["suite_value"] == 8802 and "partial" not in total["budget"]
+
+
+def test_plain_ppo_is_checked_against_the_random_policy_at_its_final_evaluation(tmp_path: Path) -> None:
+    # CarRacing has no published PPO return at the quick budget: the baseline row asks PPO to beat
+    # the random policy (threshold -32.3 in claims.csv). Learning arms pass; a flat arm at the
+    # random policy's return fails, and two trials are too few to judge.
+    text = "Suite PPO beats the random policy on CarRacing"
+    arm(tmp_path / "learns", "carracing_ppo", 3, [0, 32, 64], lambda seed, i: -50.0 + 2.0 * i + seed)
+    learns = row(claims(tmp_path / "learns", tmp_path / "out1"), text)
+    assert (learns["verdict"], learns["suite_value"]) == ("reproduced", 79.0)
+    assert learns["budget"] == "quick (3 trials), at 1,024,000 env steps (iteration 64)"
+    arm(tmp_path / "flat", "carracing_ppo", 3, [0, 32, 64], lambda seed, i: -45.0 + seed)
+    assert row(claims(tmp_path / "flat", tmp_path / "out2"), text)["verdict"] == "not reproduced"
+    arm(tmp_path / "two", "carracing_ppo", 2, [0, 32, 64], lambda seed, i: 100.0)
+    assert row(claims(tmp_path / "two", tmp_path / "out3"), text)["reason"] == "needs 3 trials; has 2"
+
+
+def test_dbc_is_checked_against_the_lowest_published_pixel_score_at_100k_env_steps(tmp_path: Path) -> None:
+    text = "Suite DBC reaches the published pixel range"
+    arm(tmp_path / "stuck", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: 1.0 + seed)
+    stuck = row(claims(tmp_path / "stuck", tmp_path / "out1"), text)
+    assert (stuck["verdict"], stuck["suite_value"]) == ("not reproduced", 2.0)
+    assert stuck["budget"] == "quick (3 trials), at 100,000 env steps (iteration 25,000)"
+    arm(tmp_path / "runs", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: i / 100 + 10.0 * seed)
+    assert row(claims(tmp_path / "runs", tmp_path / "out2"), text)["verdict"] == "reproduced"  # 250, 260, 270
