@@ -87,7 +87,7 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
         done = subprocess.run(multirun_command(plan, profile, runs_dir, overrides))
         status = "ok" if done.returncode == 0 else f"FAILED (exit {done.returncode})"
         stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
-        note = f", seed(s) {', '.join(map(str, stopped))} stopped at time_limit_min (run again to resume)" if stopped else ""
+        note = f", seed(s) {', '.join(map(str, stopped))} stopped early (time_limit_min or SIGTERM; run again to resume)" if stopped else ""
         print(f"[reproduce] {plan.label}: {status}; ran {len(plan.pending)} trial(s), "
               f"{len(plan.trials) - len(plan.pending)} already done, {time.perf_counter() - start:.0f}s{note}", flush=True)
         if done.returncode != 0:

@@ -7,8 +7,12 @@ another's simulator.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
+import threading
 from pathlib import Path
+from typing import Iterator
 
 from plls_bench.config import Config
 from plls_bench.devices import require_device
@@ -19,12 +23,37 @@ from plls_bench.seeding import derive_seeds, seed_everything
 from plls_bench.train.loop import TimeLimitReached
 
 log = logging.getLogger(__name__)
+TERMINATED_EXIT_CODE = 128 + signal.SIGTERM  # what a shell reports for a process SIGTERM ended
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived while a runner ran (``kill``, SLURM's preemption, a session's end)."""
+
+
+@contextlib.contextmanager
+def sigterm_raises() -> Iterator[None]:
+    """Turn SIGTERM into :class:`Terminated` inside the block, so that the run's status says it
+    stopped (the default action ends the process before any status is written). Only the main
+    thread can install handlers: elsewhere SIGTERM keeps its default action."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        raise Terminated(f"terminated by signal {signal.Signals(signum).name}")
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def execute(cfg: Config, run_dir: str | Path) -> str:
     """Run ``cfg`` in ``run_dir``. Returns ``"skipped"`` (already done with this config) or
     ``"done"``, or ``"stopped"`` (at a checkpoint, by ``time_limit_min``: the next launch resumes it);
-    raises after marking the run failed. A run dir holding a *different* config is
+    raises after marking the run failed. SIGTERM marks the run stopped too, then exits with status
+    143 (:func:`sigterm_raises`). A run dir holding a *different* config is
     moved aside under ``<runs_dir>/.superseded/`` first, never overwritten or deleted."""
     run, cfg_hash = Run(run_dir), config_hash(cfg)
     if run.is_done(cfg_hash):
@@ -47,11 +76,17 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
     run.prepare(cfg, cfg_hash)
     run.write_status(STATUS_RUNNING, config_hash=cfg_hash)
     try:
-        fn(cfg, run)
+        with sigterm_raises():
+            fn(cfg, run)
     except TimeLimitReached as stop:
         log.info("%s", stop)
         run.write_status(STATUS_STOPPED, config_hash=cfg_hash, iteration=stop.at.iteration, reason=str(stop))
         return "stopped"
+    except Terminated as stop:
+        # the checkpoint files are written atomically, so the last complete one resumes the run
+        log.warning("%s: the next launch resumes from the last checkpoint", stop)
+        run.write_status(STATUS_STOPPED, config_hash=cfg_hash, reason=f"{stop}; resumes from the last checkpoint")
+        raise SystemExit(TERMINATED_EXIT_CODE) from None
     except BaseException as err:
         run.write_status(STATUS_FAILED, config_hash=cfg_hash, error=f"{type(err).__name__}: {err}")
         raise

@@ -9,7 +9,7 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
     metrics/*.json        summaries, e.g. :data:`PARAMS_FILE` and :data:`ARCHITECTURE_FILE`
     checkpoints/          whatever the runner needs to resume
-    status.json           written last and atomically: running -> done | failed (with the error)
+    status.json           written last and atomically: running -> done | stopped (time limit, SIGTERM) | failed (with the error)
     filmstrip/            a sub-output made after the run (:data:`RUN_OUTPUTS`, :class:`RunOutput`):
                           its files, then done.json with its own config hash
 
@@ -29,7 +29,7 @@ from plls_bench.files import append_jsonl, atomic_write_bytes, atomic_write_json
 from plls_bench.hashing import stable_hash
 
 STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
-STATUS_STOPPED = "stopped"  # ended early at a checkpoint (time_limit_min); the next launch resumes it
+STATUS_STOPPED = "stopped"  # ended early (time_limit_min, at a checkpoint; or SIGTERM); the next launch resumes it
 SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
 # Config keys that do not change what a run computes: left out of the config hash.
 HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant", "time_limit_min")

@@ -1,9 +1,10 @@
-"""PPO presets end to end at smoke budget: the run-dir contract, overrides, resume after SIGKILL."""
+"""PPO presets end to end at smoke budget: the run-dir contract, overrides, resume after SIGKILL or SIGTERM."""
 from __future__ import annotations
 
 import csv
 import json
 import signal
+import subprocess
 import time
 from pathlib import Path
 
@@ -104,22 +105,35 @@ def test_hyper_parameters_are_overridable_from_the_command_line(shared_runs: Pat
     assert params["modules"]["policy"]["trainable"] == (2 * 16 + 16) + (16 * e + e) + e + (16 + 1)
 
 
-@pytest.mark.slow
-def test_sigkill_mid_training_resumes_without_losing_or_duplicating_evals(runs_dir: Path) -> None:
-    args = ["+experiment=mountaincar_ppo", f"runs_dir={runs_dir}", "progress=false", "variant=kill",
-            "budget.train_env_steps=5120", "budget.eval_every_env_steps=512"]  # 10 iterations, 11 evals
-    run_dir = runs_dir / "mountaincar_ppo" / "kill" / "seed=0"
+def start_and_wait_for_train_rows(args: list[str], run_dir: Path, rows: int) -> subprocess.Popen[str]:
+    """The CLI started in the background, once its run has logged ``rows`` training iterations."""
     proc = start_cli(*args)
     deadline = time.monotonic() + 300
-    while len(read_jsonl(run_dir / "metrics" / "train.jsonl")) < 4:
-        assert proc.poll() is None, f"run ended before it could be killed:\n{proc.stdout.read() if proc.stdout else ''}"
+    while len(read_jsonl(run_dir / "metrics" / "train.jsonl")) < rows:
+        assert proc.poll() is None, f"run ended too early:\n{proc.stdout.read() if proc.stdout else ''}"
         assert time.monotonic() < deadline, "run made no progress"
         time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    killed_at = len(read_jsonl(run_dir / "metrics" / "train.jsonl"))
-    assert (Run(run_dir).read_status() or {}).get("state") == "running", "killed mid-training"
-    assert killed_at < 10
+    return proc
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig, exit_code, state", [
+    (signal.SIGKILL, -signal.SIGKILL, "running"),  # no handler runs: the status stays as it was
+    (signal.SIGTERM, 143, "stopped"),              # the runner records why, then exits as a shell would report
+])
+def test_a_signal_mid_training_then_a_relaunch_loses_and_duplicates_no_evals(
+        runs_dir: Path, sig: signal.Signals, exit_code: int, state: str) -> None:
+    args = ["+experiment=mountaincar_ppo", f"runs_dir={runs_dir}", "progress=false", f"variant={sig.name}",
+            "budget.train_env_steps=5120", "budget.eval_every_env_steps=512"]  # 10 iterations, 11 evals
+    run_dir = runs_dir / "mountaincar_ppo" / sig.name / "seed=0"
+    proc = start_and_wait_for_train_rows(args, run_dir, 4)
+    proc.send_signal(sig)
+    output = proc.communicate(timeout=120)[0]
+    status = Run(run_dir).read_status() or {}
+    assert proc.returncode == exit_code, output
+    assert status.get("state") == state, status
+    assert state == "running" or sig.name in status.get("reason", ""), status
+    assert len(read_jsonl(run_dir / "metrics" / "train.jsonl")) < 10, "stopped mid-training"
 
     done = run_cli(*args)
     assert done.returncode == 0, done.stdout + done.stderr
