@@ -28,6 +28,7 @@ import argparse
 import copy
 import sys
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -66,7 +67,8 @@ def encoder_at_init(agent: DBCAgent, obs: torch.Tensor) -> dict[str, float]:
             "linear_abs_mean": float(linear.mean(0).abs().mean()), "linear_batch_std": float(linear.std(0).mean())}
 
 
-def spread_curve(agent: DBCAgent, group: str, sample, heldout: torch.Tensor, at: list[int]) -> list[float]:
+def spread_curve(agent: DBCAgent, group: str, sample: Callable[[], Batch], heldout: torch.Tensor,
+                 at: list[int]) -> list[float]:
     """The latent's batch std on ``heldout`` after each count of updates in ``at`` (ascending)."""
     curve, done = [], 0
     for target in at:
@@ -90,10 +92,11 @@ def measure(preset: str, budget: str, variant: list[str], steps: int, at: list[i
         for i in range(steps):  # steps below init_steps act uniformly at random, as the runner's warm-up
             obs, _, _ = trainer.step(obs, i, updates=False)
         rng = np.random.default_rng(1)
-        heldout = trainer.replay.sample(dbc.batch_size, rng, trainer.device).obs
+        sample = lambda: trainer.replay.sample(dbc.batch_size, rng, trainer.device)  # noqa: E731
+        heldout = sample().obs
         start = copy.deepcopy(trainer.agent.state_dict())
         init = encoder_at_init(trainer.agent, heldout)
-        update(trainer.agent, "critic", trainer.replay.sample(dbc.batch_size, rng, trainer.device), 1)
+        update(trainer.agent, "critic", sample(), 1)
         init.update({f"{k}_after_1": v for k, v in encoder_at_init(trainer.agent, heldout).items()})
         weights = trainer.agent.critic.encoder.fc.weight.detach()
         init["linear_weight_step"] = float((weights - start["modules"]["critic"]["encoder.fc.weight"]).abs().max())
@@ -101,7 +104,6 @@ def measure(preset: str, budget: str, variant: list[str], steps: int, at: list[i
         for group in groups:
             trainer.agent.load_state_dict(copy.deepcopy(start))
             torch.manual_seed(0)
-            sample = lambda: trainer.replay.sample(dbc.batch_size, rng, trainer.device)  # noqa: E731
             curves[group] = spread_curve(trainer.agent, group, sample, heldout, at)
             print(f"{preset} {' '.join(variant) or '(preset)'} {group}: {curves[group]}", flush=True)
     finally:
