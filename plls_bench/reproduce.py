@@ -4,7 +4,8 @@ results collector. ``./reproduce.sh`` bootstraps ``.venv`` and calls ``python -m
 Trials whose run dir is already done with the same config are not launched again, so an
 interrupted reproduce.sh re-run finishes only the rest; an interrupted trial resumes from its
 checkpoint. Trials a committed record holds done (``results/records``) count as done too
-(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Parallelism and clusters go through Hydra's own launchers (joblib, submitit).
+(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run as Hydra multiruns (``plls_bench.launch``): one per preset, on SLURM through submitit,
+or with ``--launcher joblib`` one per trial, ``--jobs`` at a time.
 """
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ import argparse
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 from plls_bench.composition import CONF_DIR, filmstrip_config
@@ -20,10 +20,11 @@ from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, 
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.files import read_json
+from plls_bench.launch import launcher_overrides, run_plans
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
-from plls_bench.runs import STATUS_DONE, STATUS_STOPPED, Run, config_hash, variant_overrides
+from plls_bench.runs import STATUS_DONE, Run, config_hash, variant_overrides
 from plls_bench.sweeps import load_sweep, sweep_names
 
 LAUNCHERS = ("local", "joblib", "slurm")
@@ -31,22 +32,6 @@ LAUNCHERS = ("local", "joblib", "slurm")
 # records or runs of a real profile, and a smoke run's collector writes a git-ignored folder.
 RESULTS_OUT, SMOKE_OUT = "results", "results/smoke"
 EXIT_INTERRUPTED = 130
-
-
-def launcher_overrides(launcher: str, jobs: int, extra: list[str]) -> list[str]:
-    """Hydra overrides that select a launcher (conf/hydra/launcher/) for every multirun."""
-    if launcher == "joblib":
-        # one torch thread per trial: n_jobs processes must not oversubscribe the cores
-        return ["hydra/launcher=parallel", f"hydra.launcher.n_jobs={jobs}", "torch_threads=1", *extra]
-    if launcher == "slurm":
-        return ["hydra/launcher=slurm", *extra]
-    return list(extra)
-
-
-def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: list[str]) -> list[str]:
-    seeds = ",".join(str(t.seed) for t in plan.pending)
-    return [sys.executable, "-m", "plls_bench", "-m", f"+experiment={plan.experiment}",
-            f"budget={profile}", f"seed={seeds}", f"runs_dir={runs_dir}", *plan.overrides, *overrides]
 
 
 def format_plan(plans: list[PresetPlan], jobs: int) -> str:
@@ -74,25 +59,6 @@ def format_plan(plans: list[PresetPlan], jobs: int) -> str:
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
     return "\n".join(rows)
-
-
-def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str]) -> list[str]:
-    """Launch each preset's pending trials; returns the presets whose multirun failed."""
-    failed = []
-    for plan in plans:
-        if not plan.pending:
-            print(f"[reproduce] {plan.label}: all {len(plan.trials)} trial(s) already done", flush=True)
-            continue
-        start = time.perf_counter()
-        done = subprocess.run(multirun_command(plan, profile, runs_dir, overrides))
-        status = "ok" if done.returncode == 0 else f"FAILED (exit {done.returncode})"
-        stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
-        note = f", seed(s) {', '.join(map(str, stopped))} stopped early (time_limit_min or SIGTERM; run again to resume)" if stopped else ""
-        print(f"[reproduce] {plan.label}: {status}; ran {len(plan.pending)} trial(s), "
-              f"{len(plan.trials) - len(plan.pending)} already done, {time.perf_counter() - start:.0f}s{note}", flush=True)
-        if done.returncode != 0:
-            failed.append(plan.label)
-    return failed
 
 
 def filmed_presets() -> set[str]:
@@ -186,7 +152,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", choices=BUDGET_NAMES, default="paper", help="compute profile (default: paper)")
     parser.add_argument("--launcher", choices=LAUNCHERS, default="local",
-                        help="local: one trial at a time; joblib: parallel local trials; slurm: submitit")
+                        help="local: one trial at a time; joblib: --jobs local trials at a time, the next pending "
+                             "trial of any preset starting as soon as one ends; slurm: submitit")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel trials with --launcher joblib")
     parser.add_argument("--hydra", action="append", default=[], metavar="KEY=VALUE",
                         help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
@@ -250,7 +217,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     overrides = launcher_overrides(args.launcher, args.jobs, args.hydra)
     try:
-        failed = run_plans(plans, args.profile, args.runs, overrides)
+        failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs,
+                           per_trial=args.launcher == "joblib")
         failed += film_policies(plans)
     except KeyboardInterrupt:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "

@@ -122,8 +122,9 @@ def test_a_smoke_reproduce_leaves_git_status_empty(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_sigint_then_rerun_finishes_without_redoing_finished_runs(tmp_path: Path) -> None:
-    runs, args = tmp_path / "runs", ["--profile", "smoke", "--only", *MC, "--no-report"]
+@pytest.mark.parametrize("launcher", [[], ["--launcher", "joblib", "--jobs", "2"]], ids=["local", "joblib"])
+def test_sigint_then_rerun_finishes_without_redoing_finished_runs(launcher: list[str], tmp_path: Path) -> None:
+    runs, args = tmp_path / "runs", ["--profile", "smoke", "--only", *MC, "--no-report", *launcher]
     proc = start_reproduce(*args, "--runs", str(runs))
     wait_for_state(runs / "mountaincar_va" / "default" / "seed=0" / "status.json", "running")
     os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: reproduce and the running job both get it
