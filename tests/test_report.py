@@ -4,6 +4,7 @@ rendered, and the CLI."""
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import os
 import subprocess
@@ -329,3 +330,16 @@ def test_a_long_figure_title_is_wrapped_to_the_figure_width_not_clipped() -> Non
     lines = fig.get_suptitle().split("\n")
     assert len(lines) >= 3 and max(map(len, lines)) <= 4 * TITLE_CHARS_PER_INCH
     assert " ".join(lines).startswith("Fig. 10 (suite): MountainCar, average return (SB3 Gaussian")
+
+
+def test_the_random_policy_threshold_is_the_committed_measurement() -> None:
+    """claims.csv's "PPO beats the random policy" row copies a measured number: the upper end of the
+    random policy's 95% CI on envpool in results/analysis/backend_validation.json (and the paper
+    column quotes its mean and CI). Re-measuring the random policy must move the row with it."""
+    measured = json.loads((REPO_ROOT / "results" / "analysis" / "backend_validation.json").read_text())
+    returns = measured["summary"]["returns"]["envpool"]
+    claims = pd.read_csv(PAPER_DIR / "claims.csv")
+    row = claims[claims["claim"].str.contains("beats the random policy")].iloc[0]
+    assert row["threshold"] == round(returns["ci_high"], 1)
+    quoted = f"{returns['mean']:.1f} [{returns['ci_low']:.1f}, {returns['ci_high']:.1f}]"
+    assert quoted in row["paper"] and quoted in row["source"]
