@@ -4,9 +4,9 @@ joblib`` one per trial from a queue that keeps ``--jobs`` trials running.
 A preset whose pending trials do not divide by the job count would leave cores idle under one
 multirun per preset (3 trials on 2 cores: the third runs alone), and so would a sweep whose
 variants each have one trial left. The joblib queue starts the next pending trial of any preset
-of the same stage as soon as a trial ends. Stages are the runners' plan order
-(:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built before the presets that
-read them, as with one multirun per preset.
+of the same stage as soon as a trial ends, trials that resume from a checkpoint first. Stages are
+the runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built
+before the presets that read them, as with one multirun per preset.
 """
 from __future__ import annotations
 
@@ -71,9 +71,13 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
 
 def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str],
                 jobs: int) -> list[str]:
-    """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time, in plan order."""
-    commands = [((i, t.seed), multirun_command(p, profile, runs_dir, overrides, [t.seed]))
-                for i, p in enumerate(plans) for t in p.pending]
+    """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time: trials that resume
+    from a checkpoint first, least left first (they end, and can be recorded, soonest), then the
+    fresh ones in plan order."""
+    pending = [(i, t) for i, p in enumerate(plans) for t in p.pending]
+    pending.sort(key=lambda item: item[1].remaining)  # stable: ties keep plan order
+    commands = [((i, t.seed), multirun_command(plans[i], profile, runs_dir, overrides, [t.seed]))
+                for i, t in pending]
     start = time.perf_counter()
     codes = run_queue(commands, jobs)
     failed: list[str] = []

@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from plls_bench import launch
 from plls_bench.launch import run_queue
+from plls_bench.plan import PresetPlan, Trial
 from tests.conftest import REPO_ROOT
 
 
@@ -56,3 +58,24 @@ def test_joblib_reproduce_runs_the_stages_in_order(tmp_path: Path) -> None:
     for preset in ("mountaincar_data", "mountaincar_va"):
         status = json.loads((runs / preset / "default" / "seed=0" / "status.json").read_text())
         assert status["state"] == "done"
+
+
+def test_the_queue_takes_resuming_trials_first_least_left_first(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Trials that resume from a checkpoint end (and can be recorded) soonest; fresh ones follow in
+    plan order."""
+    def trial(seed: int, at: int) -> Trial:
+        return Trial(seed, tmp_path / f"seed={seed}", done=False, cfg=None, resumes_at=at, iterations=64,
+                     resumes_from="run dir" if at else "")
+
+    plans = [PresetPlan("a", "carracing", "ppo", [trial(0, 0), trial(1, 7)], 1024),
+             PresetPlan("b", "carracing", "ppo", [trial(0, 0), trial(1, 30)], 1024)]
+    launched: list[object] = []
+
+    def fake_queue(commands: list[tuple[object, list[str]]], jobs: int) -> dict[object, int]:
+        launched.extend(key for key, _ in commands)
+        return {key: 0 for key, _ in commands}
+
+    monkeypatch.setattr(launch, "run_queue", fake_queue)
+    assert launch.run_plans(plans, "quick", str(tmp_path), [], jobs=2, per_trial=True) == []
+    assert launched == [(1, 1), (0, 1), (0, 0), (1, 0)]  # (plan, seed): b at 30/64, a at 7/64, then a, b fresh
