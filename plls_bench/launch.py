@@ -1,12 +1,14 @@
-"""Launching a plan's pending trials through Hydra multiruns: one per preset, or for ``--launcher
-joblib`` one per trial from a queue that keeps ``--jobs`` trials running.
+"""Launching a plan's pending trials as Hydra multiruns: on this machine one per trial, from a
+queue that keeps ``jobs`` trials running (``--launcher local``: 1, ``joblib``: ``--jobs``); on
+SLURM one per preset, whose jobs submitit runs side by side.
 
-A preset whose pending trials do not divide by the job count would leave cores idle under one
-multirun per preset (3 trials on 2 cores: the third runs alone), and so would a sweep whose
-variants each have one trial left. The joblib queue starts the next pending trial of any preset
-of the same stage as soon as a trial ends, trials that resume from a checkpoint first. Stages are
-the runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built
-before the presets that read them, as with one multirun per preset.
+One multirun per preset would leave cores idle on this machine whenever a preset's pending trials
+do not divide by the job count (3 trials on 2 cores: the third runs alone), and so would a sweep
+whose variants each have one trial left. The queue starts the next pending trial of any preset of
+the same stage as soon as a trial ends, trials that resume from a checkpoint first. Stages are the
+runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built before
+the presets that read them. A queue may have a deadline (``reproduce --stop-after-min``): each
+trial gets the time left as its ``time_limit_min`` when it starts, and none starts after it.
 """
 from __future__ import annotations
 
@@ -16,23 +18,27 @@ import subprocess
 import sys
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Hashable, Sequence
 
 from plls_bench.plan import PresetPlan
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_STOPPED, Run
 
+Launch = Callable[[], list[str] | None]  # a queued trial's argv when it starts; None: skip it
 POLL_SECONDS = 0.5
 # On Ctrl-C the trials get SIGINT from the terminal too; a trial still running after this long
 # (reproduce alone was signalled) gets SIGTERM, which stops it at a resumable point (status stopped).
 INTERRUPT_GRACE_SECONDS = 30.0
+# No trial starts with less time than this left to the deadline: a trial runs at least to its
+# first checkpoint whatever its limit, so it would overrun the deadline for little work.
+MIN_START_MINUTES = 2.0
 
 
 def launcher_overrides(launcher: str, jobs: int, extra: list[str]) -> list[str]:
     """Hydra overrides that select a launcher (conf/hydra/launcher/) for every multirun."""
     if launcher == "joblib":
-        # each one-trial multirun runs in its own process (the basic launcher): --jobs processes
-        # with one torch thread each do not oversubscribe the cores
+        # --jobs one-trial multiruns at once (the basic launcher, each its own process), with one
+        # torch thread each so they do not oversubscribe the cores
         return ["torch_threads=1", *extra]
     if launcher == "slurm":
         return ["hydra/launcher=slurm", *extra]
@@ -40,18 +46,22 @@ def launcher_overrides(launcher: str, jobs: int, extra: list[str]) -> list[str]:
 
 
 def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: list[str],
-                     seeds: Sequence[int] | None = None) -> list[str]:
+                     seeds: Sequence[int] | None = None, time_limit_min: float = 0.0) -> list[str]:
     """The Hydra multirun of ``seeds`` (default: every pending trial) of ``plan``."""
     chosen = [t.seed for t in plan.pending] if seeds is None else list(seeds)
+    limit = [f"time_limit_min={time_limit_min:g}"] if time_limit_min > 0 else []
     return [sys.executable, "-m", "plls_bench", "-m", f"+experiment={plan.experiment}",
             f"budget={profile}", f"seed={','.join(map(str, chosen))}", f"runs_dir={runs_dir}",
-            *plan.overrides, *overrides]
+            *plan.overrides, *limit, *overrides]
 
 
-def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str],
-              jobs: int = 1, per_trial: bool = False) -> list[str]:
+def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int = 1,
+              per_trial: bool = True, time_limit_min: float = 0.0, stop_after_min: float = 0.0) -> list[str]:
     """Launch each preset's pending trials, stage by stage; returns the presets with a failed trial.
-    ``per_trial``: one multirun per trial, ``jobs`` at a time (the joblib launcher's queue)."""
+    ``per_trial``: the queue of one-trial multiruns, ``jobs`` at a time, ending by ``stop_after_min``
+    minutes from now (0: no deadline); else one multirun per preset (SLURM). ``time_limit_min``: each
+    trial's own limit (0: none)."""
+    deadline = time.monotonic() + 60.0 * stop_after_min if stop_after_min > 0 else None
     failed: list[str] = []
     for _, stage in itertools.groupby(plans, key=lambda p: runner_spec(p.runner).order):
         stage_plans = list(stage)
@@ -60,54 +70,80 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
                 print(f"[reproduce] {plan.label}: all {len(plan.trials)} trial(s) already done", flush=True)
         todo = [p for p in stage_plans if p.pending]
         if per_trial:
-            failed += _run_queued(todo, profile, runs_dir, overrides, jobs)
-        else:
-            for plan in todo:
-                start = time.perf_counter()
-                code = subprocess.run(multirun_command(plan, profile, runs_dir, overrides)).returncode
-                failed += _report(plan, [code], time.perf_counter() - start)
+            failed += _run_queued(todo, profile, runs_dir, overrides, jobs, time_limit_min, deadline)
+            continue
+        for plan in todo:
+            start = time.perf_counter()
+            code = subprocess.run(multirun_command(plan, profile, runs_dir, overrides,
+                                                   time_limit_min=time_limit_min)).returncode
+            failed += _report(plan, [code], time.perf_counter() - start)
     return failed
 
 
-def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str],
-                jobs: int) -> list[str]:
+def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int,
+                time_limit_min: float, deadline: float | None) -> list[str]:
     """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time: trials that resume
     from a checkpoint first, least left first (they end, and can be recorded, soonest), then the
     fresh ones in plan order."""
     pending = [(i, t) for i, p in enumerate(plans) for t in p.pending]
     pending.sort(key=lambda item: item[1].remaining)  # stable: ties keep plan order
-    commands = [((i, t.seed), multirun_command(plans[i], profile, runs_dir, overrides, [t.seed]))
-                for i, t in pending]
+
+    def launcher(i: int, seed: int) -> Launch:
+        def argv() -> list[str] | None:
+            limit = _limit_at_start(time_limit_min, deadline)
+            return None if limit is None else multirun_command(plans[i], profile, runs_dir, overrides, [seed], limit)
+        return argv
+
     start = time.perf_counter()
-    codes = run_queue(commands, jobs)
+    codes = run_queue([((i, t.seed), launcher(i, t.seed)) for i, t in pending], jobs)
     failed: list[str] = []
     for i, plan in enumerate(plans):
         failed += _report(plan, [codes[(i, t.seed)] for t in plan.pending], time.perf_counter() - start)
     return failed
 
 
-def _report(plan: PresetPlan, codes: list[int], seconds: float) -> list[str]:
-    """Print a preset's outcome; returns its label if a trial's multirun failed."""
-    bad = [c for c in codes if c != 0]
+def _limit_at_start(time_limit_min: float, deadline: float | None) -> float | None:
+    """A trial's ``time_limit_min`` if it starts now: its own, or the time left to the deadline if
+    shorter; None if too little is left to reach a checkpoint."""
+    if deadline is None:
+        return time_limit_min
+    left = (deadline - time.monotonic()) / 60.0
+    if left < MIN_START_MINUTES:
+        return None
+    return min(time_limit_min, left) if time_limit_min > 0 else left
+
+
+def _report(plan: PresetPlan, codes: list[int | None], seconds: float) -> list[str]:
+    """Print a preset's outcome (a None code: never started, the deadline came first); returns its
+    label if a trial's multirun failed."""
+    bad = [c for c in codes if c not in (0, None)]
     status = "ok" if not bad else f"FAILED (exit {bad[0]})"
+    ran = sum(c is not None for c in codes)
     stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
-    note = (f", seed(s) {', '.join(map(str, stopped))} stopped early (time_limit_min or SIGTERM; run again "
+    note = (f", seed(s) {', '.join(map(str, stopped))} stopped early (time limit or SIGTERM; run again "
             f"to resume)" if stopped else "")
-    print(f"[reproduce] {plan.label}: {status}; ran {len(plan.pending)} trial(s), "
+    if ran < len(codes):
+        note += f", {len(codes) - ran} not started (--stop-after-min reached; run again to start them)"
+    print(f"[reproduce] {plan.label}: {status}; ran {ran} trial(s), "
           f"{len(plan.trials) - len(plan.pending)} already done, {seconds:.0f}s{note}", flush=True)
     return [plan.label] if bad else []
 
 
-def run_queue(commands: list[tuple[object, list[str]]], jobs: int) -> dict[object, int]:
-    """Run ``(key, argv)`` commands, at most ``jobs`` at once, each started as soon as a slot frees;
-    returns each key's exit status. Ctrl-C starts nothing more, lets the running ones stop (see
+def run_queue(commands: list[tuple[Hashable, Launch]], jobs: int) -> dict[Hashable, int | None]:
+    """Run ``(key, launch)`` commands, at most ``jobs`` at once, each started as soon as a slot
+    frees: ``launch()`` gives its argv when it starts, or None to skip it. Returns each key's exit
+    status (None: skipped). Ctrl-C starts nothing more, lets the running ones stop (see
     ``INTERRUPT_GRACE_SECONDS``) and re-raises."""
     queue, running, codes = deque(commands), {}, {}
     try:
         while queue or running:
             while queue and len(running) < jobs:
-                key, argv = queue.popleft()
-                running[subprocess.Popen(argv)] = key
+                key, launch = queue.popleft()
+                argv = launch()
+                if argv is None:
+                    codes[key] = None
+                else:
+                    running[subprocess.Popen(argv)] = key
             ended = [proc for proc in running if proc.poll() is not None]
             for proc in ended:
                 codes[running.pop(proc)] = proc.returncode

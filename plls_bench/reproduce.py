@@ -4,8 +4,8 @@ results collector. ``./reproduce.sh`` bootstraps ``.venv`` and calls ``python -m
 Trials whose run dir is already done with the same config are not launched again, so an
 interrupted reproduce.sh re-run finishes only the rest; an interrupted trial resumes from its
 checkpoint. Trials a committed record holds done (``results/records``) count as done too
-(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run as Hydra multiruns (``plls_bench.launch``): one per preset, on SLURM through submitit,
-or with ``--launcher joblib`` one per trial, ``--jobs`` at a time.
+(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run as Hydra multiruns (``plls_bench.launch``): on this machine one per trial, ``--jobs``
+at a time with ``--launcher joblib``; on SLURM one per preset, through submitit.
 """
 from __future__ import annotations
 
@@ -152,8 +152,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", choices=BUDGET_NAMES, default="paper", help="compute profile (default: paper)")
     parser.add_argument("--launcher", choices=LAUNCHERS, default="local",
-                        help="local: one trial at a time; joblib: --jobs local trials at a time, the next pending "
-                             "trial of any preset starting as soon as one ends; slurm: submitit")
+                        help="local: one trial at a time; joblib: --jobs trials at a time, the next pending trial "
+                             "of any preset starting as soon as one ends; slurm: submitit")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel trials with --launcher joblib")
     parser.add_argument("--hydra", action="append", default=[], metavar="KEY=VALUE",
                         help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
@@ -169,6 +169,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--time-limit-min", type=float, default=0.0, metavar="MIN",
                         help="per trial: a learner stops at its last checkpoint before MIN minutes (status "
                              "stopped) and the next launch resumes it; for job time limits (default 0: none)")
+    parser.add_argument("--stop-after-min", type=float, default=0.0, metavar="MIN",
+                        help="the whole launch on this machine: no trial starts after MIN minutes, and each "
+                             "gets the time left as its time limit when it starts, so learners stop at a "
+                             "checkpoint by then (status stopped; the next launch resumes them); for a "
+                             "sitting of known length (default 0: none; not with --launcher slurm)")
     parser.add_argument("--runs", default="results/runs", help="root of run directories")
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
@@ -180,8 +185,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
-    if not args.time_limit_min >= 0:
-        parser.error(f"--time-limit-min must be >= 0, got {args.time_limit_min}")
+    for option, minutes in (("--time-limit-min", args.time_limit_min), ("--stop-after-min", args.stop_after_min)):
+        if not minutes >= 0:
+            parser.error(f"{option} must be >= 0, got {minutes:g}")
+    if args.stop_after_min > 0 and args.launcher == "slurm":
+        parser.error("--stop-after-min: SLURM starts jobs when it chooses; give each a limit with --time-limit-min")
     bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
     if args.sweep and args.only:
         parser.error("--sweep and --only: give one (a sweep runs only its own preset)")
@@ -201,7 +209,6 @@ def main(argv: list[str] | None = None) -> int:
         count_records = not args.rerun_recorded
         # fp32 adds nothing: the presets' own value, so their run dirs stay where they are
         extra = (f"precision={args.precision}",) if args.precision != "fp32" else ()
-        extra += (f"time_limit_min={args.time_limit_min:g}",) if args.time_limit_min > 0 else ()
         if args.sweep:
             plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs, count_records=count_records,
                                overrides=extra)
@@ -217,8 +224,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     overrides = launcher_overrides(args.launcher, args.jobs, args.hydra)
     try:
-        failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs,
-                           per_trial=args.launcher == "joblib")
+        failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs, per_trial=args.launcher != "slurm",
+                           time_limit_min=args.time_limit_min, stop_after_min=args.stop_after_min)
         failed += film_policies(plans)
     except KeyboardInterrupt:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "

@@ -25,6 +25,10 @@ def waits_for(flag: Path) -> list[str]:
     return [sys.executable, "-c", code]
 
 
+def queued(commands: list[tuple[str, list[str]]]) -> list[tuple[str, launch.Launch]]:
+    return [(key, lambda argv=argv: argv) for key, argv in commands]
+
+
 def touches(flag: Path, code: int = 0) -> list[str]:
     return [sys.executable, "-c", f"import pathlib, sys; pathlib.Path({str(flag)!r}).touch(); sys.exit({code})"]
 
@@ -36,28 +40,45 @@ def test_the_queue_starts_the_next_command_as_soon_as_a_slot_frees(tmp_path: Pat
     flag = tmp_path / "go"
     commands = [("first", waits_for(flag)), ("second", [sys.executable, "-c", "pass"]),
                 ("third", touches(flag, code=3))]
-    assert run_queue(commands, jobs=2) == {"first": 0, "second": 0, "third": 3}
+    assert run_queue(queued(commands), jobs=2) == {"first": 0, "second": 0, "third": 3}
 
 
 def test_one_slot_runs_the_commands_in_order(tmp_path: Path) -> None:
     flag = tmp_path / "go"
-    assert run_queue([("make", touches(flag)), ("wait", waits_for(flag))], jobs=1) == {"make": 0, "wait": 0}
+    assert run_queue(queued([("make", touches(flag)), ("wait", waits_for(flag))]), jobs=1) == {"make": 0, "wait": 0}
+
+
+def test_a_command_that_gives_no_argv_when_its_turn_comes_is_skipped(tmp_path: Path) -> None:
+    flag = tmp_path / "made"
+    commands = [("skipped", lambda: None), ("run", lambda: touches(flag))]
+    assert run_queue(commands, jobs=1) == {"skipped": None, "run": 0} and flag.exists()
+
+
+def test_a_trial_s_limit_is_the_time_left_to_the_deadline_when_it_starts(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(launch.time, "monotonic", lambda: 1000.0)
+    assert launch._limit_at_start(0.0, None) == 0.0 and launch._limit_at_start(90.0, None) == 90.0
+    assert launch._limit_at_start(0.0, 1000.0 + 600) == pytest.approx(10.0)  # 10 minutes left
+    assert launch._limit_at_start(5.0, 1000.0 + 600) == 5.0  # its own limit is shorter
+    assert launch._limit_at_start(0.0, 1000.0 + 60 * launch.MIN_START_MINUTES - 1) is None  # too late to start
 
 
 @pytest.mark.slow
 def test_joblib_reproduce_runs_the_stages_in_order(tmp_path: Path) -> None:
-    """The dataset preset (stage 0) is reported done before V_a's (stage 1), which reads it."""
+    """The dataset preset (stage 0) is reported done before V_a's (stage 1), which reads it; with a
+    deadline each trial is launched with the time left as its time_limit_min."""
     runs = tmp_path / "runs"
     done = subprocess.run([sys.executable, "-m", "plls_bench.reproduce", "--profile", "smoke", "--only",
                            "mountaincar_data", "mountaincar_va", "--launcher", "joblib", "--jobs", "2",
-                           "--no-report", "--runs", str(runs)], cwd=REPO_ROOT, capture_output=True, text=True,
-                          timeout=900)
+                           "--stop-after-min", "60", "--no-report", "--runs", str(runs)], cwd=REPO_ROOT,
+                          capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     lines = [line for line in done.stdout.splitlines() if ": ok; ran 1 trial(s)" in line]
     assert [line.split()[1] for line in lines] == ["mountaincar_data:", "mountaincar_va:"], done.stdout
     for preset in ("mountaincar_data", "mountaincar_va"):
-        status = json.loads((runs / preset / "default" / "seed=0" / "status.json").read_text())
-        assert status["state"] == "done"
+        run_dir = runs / preset / "default" / "seed=0"
+        assert json.loads((run_dir / "status.json").read_text())["state"] == "done"
+        limits = [o for o in (run_dir / ".hydra" / "overrides.yaml").read_text().split() if "time_limit_min=" in o]
+        assert len(limits) == 1 and 50 < float(limits[0].split("=")[1]) <= 60, limits
 
 
 def test_the_queue_takes_resuming_trials_first_least_left_first(tmp_path: Path,
@@ -72,10 +93,29 @@ def test_the_queue_takes_resuming_trials_first_least_left_first(tmp_path: Path,
              PresetPlan("b", "carracing", "ppo", [trial(0, 0), trial(1, 30)], 1024)]
     launched: list[object] = []
 
-    def fake_queue(commands: list[tuple[object, list[str]]], jobs: int) -> dict[object, int]:
+    def fake_queue(commands: list[tuple[object, launch.Launch]], jobs: int) -> dict[object, int]:
         launched.extend(key for key, _ in commands)
         return {key: 0 for key, _ in commands}
 
     monkeypatch.setattr(launch, "run_queue", fake_queue)
     assert launch.run_plans(plans, "quick", str(tmp_path), [], jobs=2, per_trial=True) == []
     assert launched == [(1, 1), (0, 1), (0, 0), (1, 0)]  # (plan, seed): b at 30/64, a at 7/64, then a, b fresh
+
+
+def test_stop_after_min_starts_no_trial_too_close_to_the_deadline(tmp_path: Path) -> None:
+    """With less than MIN_START_MINUTES given, the trial is reported not started and nothing runs."""
+    runs = tmp_path / "runs"
+    done = subprocess.run([sys.executable, "-m", "plls_bench.reproduce", "--profile", "smoke", "--only",
+                           "mountaincar_data", "--stop-after-min", "1", "--no-report", "--runs", str(runs)],
+                          cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "mountaincar_data: ok; ran 0 trial(s), 0 already done" in done.stdout
+    assert "1 not started (--stop-after-min reached" in done.stdout
+    assert not (runs / "mountaincar_data").exists()
+
+
+def test_stop_after_min_is_refused_for_slurm(tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "plls_bench.reproduce", "--launcher", "slurm", "--stop-after-min",
+                           "60", "--dry-run", "--runs", str(tmp_path)], cwd=REPO_ROOT, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 2 and "--stop-after-min: SLURM starts jobs" in done.stderr
