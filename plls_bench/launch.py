@@ -23,6 +23,7 @@ from collections.abc import Callable, Hashable, Sequence
 from plls_bench.plan import PresetPlan
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_STOPPED, Run
+from plls_bench.signals import Terminated
 
 Launch = Callable[[], list[str] | None]  # a queued trial's argv when it starts; None: skip it
 POLL_SECONDS = 0.5
@@ -133,7 +134,8 @@ def run_queue(commands: list[tuple[Hashable, Launch]], jobs: int) -> dict[Hashab
     """Run ``(key, launch)`` commands, at most ``jobs`` at once, each started as soon as a slot
     frees: ``launch()`` gives its argv when it starts, or None to skip it. Returns each key's exit
     status (None: skipped). Ctrl-C starts nothing more, lets the running ones stop (see
-    ``INTERRUPT_GRACE_SECONDS``) and re-raises."""
+    ``INTERRUPT_GRACE_SECONDS``) and re-raises; so does :class:`Terminated`, after passing SIGTERM
+    on to them at once."""
     queue, running, codes = deque(commands), {}, {}
     try:
         while queue or running:
@@ -150,13 +152,18 @@ def run_queue(commands: list[tuple[Hashable, Launch]], jobs: int) -> dict[Hashab
             if not ended:
                 time.sleep(POLL_SECONDS)
     except KeyboardInterrupt:
-        _stop(list(running))
+        _stop(list(running), grace_s=INTERRUPT_GRACE_SECONDS)
+        raise
+    except Terminated:  # reproduce alone was sent SIGTERM (reproduce's sigterm_raises): pass it on
+        _stop(list(running), grace_s=0.0)
         raise
     return codes
 
 
-def _stop(procs: list[subprocess.Popen]) -> None:
-    deadline = time.monotonic() + INTERRUPT_GRACE_SECONDS
+def _stop(procs: list[subprocess.Popen], grace_s: float) -> None:
+    """Wait up to ``grace_s`` for ``procs`` to end by themselves, then SIGTERM the rest (a trial
+    stops at a resumable point, status ``stopped``) and wait for them."""
+    deadline = time.monotonic() + grace_s
     for proc in procs:
         try:
             proc.wait(timeout=max(0.0, deadline - time.monotonic()))

@@ -25,6 +25,7 @@ from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, pl
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, Run, config_hash, variant_overrides
+from plls_bench.signals import TERMINATED_EXIT_CODE, Terminated, sigterm_raises
 from plls_bench.sweeps import load_sweep, sweep_names
 
 LAUNCHERS = ("local", "joblib", "slurm")
@@ -224,13 +225,19 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     overrides = launcher_overrides(args.launcher, args.jobs, args.hydra)
     try:
-        failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs, per_trial=args.launcher != "slurm",
-                           time_limit_min=args.time_limit_min, stop_after_min=args.stop_after_min)
-        failed += film_policies(plans)
+        with sigterm_raises():  # SIGTERM to reproduce alone reaches the trials it started (launch.run_queue)
+            failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs,
+                               per_trial=args.launcher != "slurm", time_limit_min=args.time_limit_min,
+                               stop_after_min=args.stop_after_min)
+            failed += film_policies(plans)
     except KeyboardInterrupt:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "
               "from its checkpoint; run the same command again to finish the rest", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except Terminated as stop:
+        print(f"[reproduce] {stop}: the running trials were stopped (status stopped) and resume from "
+              "their checkpoints; run the same command again to finish the rest", file=sys.stderr)
+        return TERMINATED_EXIT_CODE
     if args.profile != "smoke":
         export_run_records(args.runs)
     report = 0 if args.no_report else collect_results(args.runs, args.out)

@@ -7,12 +7,8 @@ another's simulator.
 """
 from __future__ import annotations
 
-import contextlib
 import logging
-import signal
-import threading
 from pathlib import Path
-from typing import Iterator
 
 from plls_bench.config import Config
 from plls_bench.devices import require_device
@@ -20,33 +16,10 @@ from plls_bench.records.restore import seed_from_partial
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, STATUS_STOPPED, Run, config_hash
 from plls_bench.seeding import derive_seeds, seed_everything
+from plls_bench.signals import TERMINATED_EXIT_CODE, Terminated, sigterm_raises
 from plls_bench.train.loop import TimeLimitReached
 
 log = logging.getLogger(__name__)
-TERMINATED_EXIT_CODE = 128 + signal.SIGTERM  # what a shell reports for a process SIGTERM ended
-
-
-class Terminated(BaseException):
-    """SIGTERM arrived while a runner ran (``kill``, SLURM's preemption, a session's end)."""
-
-
-@contextlib.contextmanager
-def sigterm_raises() -> Iterator[None]:
-    """Turn SIGTERM into :class:`Terminated` inside the block, so that the run's status says it
-    stopped (the default action ends the process before any status is written). Only the main
-    thread can install handlers: elsewhere SIGTERM keeps its default action."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        raise Terminated(f"terminated by signal {signal.Signals(signum).name}")
-
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def execute(cfg: Config, run_dir: str | Path) -> str:

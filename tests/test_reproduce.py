@@ -140,6 +140,24 @@ def test_sigint_then_rerun_finishes_without_redoing_finished_runs(launcher: list
 
 
 @pytest.mark.slow
+def test_sigterm_to_reproduce_alone_stops_its_trials_then_a_rerun_finishes(tmp_path: Path) -> None:
+    """A scheduler or `kill PID` signals reproduce, not its trials: reproduce passes SIGTERM on, the
+    running trial writes status stopped, reproduce exits 143 and the same command finishes."""
+    runs, args = tmp_path / "runs", ["--profile", "smoke", "--only", *MC, "--no-report", "--launcher", "joblib"]
+    proc = start_reproduce(*args, "--runs", str(runs))
+    status = runs / "mountaincar_va" / "default" / "seed=0" / "status.json"
+    wait_for_state(status, "running")
+    time.sleep(1.0)  # into the runner's own SIGTERM handling, installed right after "running" is written
+    proc.send_signal(signal.SIGTERM)  # reproduce's pid only, not its process group
+    output, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 143 and "terminated by signal SIGTERM" in output, output
+    assert json.loads(status.read_text())["state"] == "stopped"
+    again = reproduce(*args, "--runs", str(runs))
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert "mountaincar_va: ok; ran 1 trial(s)" in again.stdout
+
+
+@pytest.mark.slow
 def test_sigkill_of_a_worker_then_rerun_completes(tmp_path: Path) -> None:
     runs, args = tmp_path / "runs", ["--profile", "smoke", "--only", *MC, "--no-report"]
     proc = start_reproduce(*args, "--runs", str(runs))

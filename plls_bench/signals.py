@@ -1,0 +1,43 @@
+"""SIGTERM as an exception, for the two processes that must act on it before they end: a trial
+(its status says ``stopped``, :mod:`plls_bench.runner`) and ``reproduce``'s queue (it passes the
+signal on to the trials it started, :mod:`plls_bench.launch`)."""
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from typing import Iterator
+
+TERMINATED_EXIT_CODE = 128 + signal.SIGTERM  # what a shell reports for a process SIGTERM ended
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived (``kill``, SLURM's preemption, a session's end)."""
+
+
+@contextlib.contextmanager
+def sigterm_raises() -> Iterator[None]:
+    """Turn SIGTERM into :class:`Terminated` inside the block (the default action ends the process
+    before it can act); once it has fired, later SIGTERMs are ignored, also after the block, since
+    the process is on its way out. Only the main thread can install handlers: elsewhere SIGTERM
+    keeps its default action."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    fired = False
+
+    def handler(signum: int, frame: object) -> None:
+        nonlocal fired
+        fired = True
+        # one is enough: a second (a process group's kill, then reproduce passing it on) must not
+        # end the process by the default action while it writes that it stopped
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise Terminated(f"terminated by signal {signal.Signals(signum).name}")
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        if not fired:
+            signal.signal(signal.SIGTERM, previous)
