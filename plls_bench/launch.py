@@ -35,7 +35,7 @@ INTERRUPT_GRACE_SECONDS = 30.0
 MIN_START_MINUTES = 2.0
 
 
-def launcher_overrides(launcher: str, jobs: int, extra: list[str]) -> list[str]:
+def launcher_overrides(launcher: str, extra: list[str]) -> list[str]:
     """Hydra overrides that select a launcher (conf/hydra/launcher/) for every multirun."""
     if launcher == "joblib":
         # --jobs one-trial multiruns at once (the basic launcher, each its own process), with one

@@ -4,8 +4,9 @@ results collector. ``./reproduce.sh`` bootstraps ``.venv`` and calls ``python -m
 Trials whose run dir is already done with the same config are not launched again, so an
 interrupted reproduce.sh re-run finishes only the rest; an interrupted trial resumes from its
 checkpoint. Trials a committed record holds done (``results/records``) count as done too
-(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run as Hydra multiruns (``plls_bench.launch``): on this machine one per trial, ``--jobs``
-at a time with ``--launcher joblib``; on SLURM one per preset, through submitit.
+(``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run
+as Hydra multiruns (``plls_bench.launch``): on this machine one per trial, ``--jobs`` at a time
+with ``--launcher joblib``; on SLURM one per preset, through submitit.
 """
 from __future__ import annotations
 
@@ -223,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     print(format_plan(plans, jobs), flush=True)
     if args.dry_run:
         return 0
-    overrides = launcher_overrides(args.launcher, args.jobs, args.hydra)
+    overrides = launcher_overrides(args.launcher, args.hydra)
     try:
         with sigterm_raises():  # SIGTERM to reproduce alone reaches the trials it started (launch.run_queue)
             failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs,
