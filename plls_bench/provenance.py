@@ -12,8 +12,10 @@ from typing import Any
 
 from plls_bench.devices import cpu_model, device_name, resolve_device
 
+# Every simulator a run can step is here: records of one preset made on two machines (a CPU
+# campaign, a lent GPU) are comparable only where these versions agree.
 PACKAGES = ("plls-bench", "torch", "numpy", "gymnasium", "stable-baselines3", "mujoco",
-            "dm-control", "hydra-core", "omegaconf", "box2d", "cvxpy")
+            "dm-control", "envpool", "hydra-core", "omegaconf", "box2d", "cvxpy")
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SOURCE_SHA_VAR = "PLLS_BENCH_SOURCE_SHA"  # read only where no git checkout is found (git_state)
 

@@ -96,6 +96,8 @@ def test_execute_writes_the_contract_and_skips_when_done(runs_dir: Path) -> None
     assert status["state"] == "done"
     provenance = json.loads((run_dir / "provenance.json").read_text())
     assert {"git_sha", "git_dirty", "packages", "command", "host", "device", "start_time"} <= set(provenance)
+    assert {"gymnasium", "box2d", "envpool", "mujoco", "dm-control"} <= set(provenance["packages"])  # every simulator
+    assert provenance["packages"]["envpool"] is not None  # installed by pyproject.toml
     assert execute(cfg, run_dir) == "skipped"
     assert list(iter_run_dirs(runs_dir)) == [run_dir]
 
