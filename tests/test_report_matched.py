@@ -114,6 +114,14 @@ def test_parameter_counts_come_from_an_unfinished_trial_s_partial_record(tmp_pat
     assert total["budget"] == "seed 1's unfinished quick-budget trial (partial record)"
     assert row(table, "PPO: trainable parameters")["suite_value"] == 1_644_878
     assert row(table, FIG18)["verdict"] == "not run at this budget"  # its returns are no trial of the curves
+    assert row(table, FIG18)["reason"] == ("no runs of carracing_plls_ppo; "  # every missing arm is named
+                                           "no finished runs of carracing_ppo; unfinished, in partial records: seed 1")
+    (run.path / "partial.json").write_text('{"iteration": 4, "state": "stopped"}')  # what records.export writes
+    render_all(tmp_path / "runs", tmp_path / "out", only=["claims"], records_dir=records)
+    table = pd.read_csv(tmp_path / "out" / "tables" / "claims.csv").set_index("claim")
+    assert row(table, FIG18)["reason"].endswith("partial records: seed 1 at iteration 4")
+    assert row(table, "PL-LS (V_s + V_a) beats PPO + V_a only")["reason"] == (
+        "no runs of carracing_plls_ppo; no runs of carracing_ppo_va")
     ppo = pd.read_csv(tmp_path / "out" / "tables" / "table3.csv").set_index("experiment").loc["carracing_ppo"]
     assert (ppo["total_parameters"], ppo["trials"]) == (3_289_768, 0)
 

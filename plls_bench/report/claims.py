@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 
 from plls_bench.config import BUDGET_NAMES
+from plls_bench.files import read_json
+from plls_bench.records.layout import PARTIAL_MARKER
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.efficiency import fmt_convergence, parameter_counts
 from plls_bench.report.load import Runs
@@ -208,11 +210,10 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
 
 def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str, str | None]:
     """(estimate, verdict, reason, budget text) for one claim row."""
-    names = [n for n in (claim["experiment"], claim["baseline"]) if n]
-    for name in names:
-        budget = _run_budget(runs, name, claim["kind"])
-        if budget is None:
-            return None, NOT_RUN, f"no runs of {name}", None
+    budgets = {n: _run_budget(runs, n, claim["kind"]) for n in (claim["experiment"], claim["baseline"]) if n}
+    if None in budgets.values():  # every arm without a run is named, so the row says all that is missing
+        return None, NOT_RUN, "; ".join(_no_runs_reason(runs, n) for n, b in budgets.items() if b is None), None
+    for name, budget in budgets.items():
         if BUDGET_ORDER.index(budget) < BUDGET_ORDER.index(claim["min_budget"]):
             return None, NOT_RUN, f"{name} ran at budget {budget}; judged from budget {claim['min_budget']} up", None
     try:
@@ -239,6 +240,20 @@ def _run_budget(runs: Runs, name: str, kind: str) -> str | None:
         counts = parameter_counts(runs, runs.experiment(name))
         budget = counts.trial.cfg("budget.name") if counts else None
     return budget
+
+
+def _no_runs_reason(runs: Runs, name: str) -> str:
+    """Why ``name`` has no trial to judge: none ran, or its trials are unfinished partial records
+    (named with the iteration each stopped at, so the table shows how far the evidence has got)."""
+    partial = runs.partial_trials(name)
+    if not partial:
+        return f"no runs of {name}"
+    where = []
+    for trial in partial:
+        marker = read_json(trial.path / PARTIAL_MARKER)
+        at = marker.get("iteration") if isinstance(marker, dict) else None
+        where.append(f"seed {trial.seed}" + ("" if at is None else f" at iteration {at}"))
+    return f"no finished runs of {name}; unfinished, in partial records: {', '.join(where)}"
 
 
 def _is_number(text: str) -> bool:
