@@ -20,23 +20,26 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 SOURCE_SHA_VAR = "PLLS_BENCH_SOURCE_SHA"  # read only where no git checkout is found (git_state)
 
 
-def git_state(repo: Path = REPO_ROOT) -> dict[str, Any]:
-    """Commit sha and whether the working tree has uncommitted changes (None outside git, where
-    ``$PLLS_BENCH_SOURCE_SHA``, if set, names the commit the code was copied from)."""
-    def git(*args: str) -> str | None:
-        try:
-            out = subprocess.run(["git", "-C", str(repo), *args], capture_output=True, text=True,
-                                 timeout=10, check=True)
-        except (OSError, subprocess.SubprocessError):
-            return None
-        return out.stdout.strip()
+def _git(repo: Path, *args: str) -> str | None:
+    try:
+        out = subprocess.run(["git", "-C", str(repo), *args], capture_output=True, text=True,
+                             timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip()
 
-    sha = git("rev-parse", "HEAD")
+
+def git_state(repo: Path = REPO_ROOT, paths: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Commit sha and whether the working tree has uncommitted changes (None outside git, where
+    ``$PLLS_BENCH_SOURCE_SHA``, if set, names the commit the code was copied from). With ``paths``:
+    the last commit that changed them, and whether they have uncommitted changes, so a file built
+    by that code names the same commit in every checkout of a later commit that left it alone."""
+    sha = (_git(repo, "log", "-1", "--format=%H", "--", *paths) if paths else _git(repo, "rev-parse", "HEAD")) or None
     if sha is None and os.environ.get(SOURCE_SHA_VAR):
         # A copy of the code without .git (a container, a cluster node's rsync): the launcher
         # names the commit it copied; the dirty flag stays unknown, and the record says whence.
         return {"git_sha": os.environ[SOURCE_SHA_VAR], "git_dirty": None, "git_sha_from": SOURCE_SHA_VAR}
-    status = git("status", "--porcelain", "--untracked-files=no")
+    status = _git(repo, "status", "--porcelain", "--untracked-files=no", "--", *paths)
     return {"git_sha": sha, "git_dirty": None if status is None else bool(status)}
 
 

@@ -145,3 +145,29 @@ def test_a_copy_without_git_records_the_commit_its_launcher_names(tmp_path: Path
     assert git_state(tmp_path) == {"git_sha": "0123abc", "git_dirty": None, "git_sha_from": SOURCE_SHA_VAR}
     inside = git_state()
     assert inside["git_sha"] != "0123abc" and "git_sha_from" not in inside
+
+
+def test_git_state_of_paths_names_the_last_commit_that_changed_them(tmp_path: Path) -> None:
+    """What results/README.md names as its collector: the same commit in every checkout of a later
+    commit that left the collector alone, and dirty only when the collector itself is."""
+    import subprocess
+
+    from plls_bench.provenance import git_state
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t", *args],
+                              check=True, capture_output=True, text=True).stdout.strip()
+
+    git("init", "-q")
+    for folder in ("code", "records"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "f.txt").write_text("1")
+        git("add", folder)
+        git("commit", "-qm", folder)
+    first, head = git("rev-list", "--max-parents=0", "HEAD"), git("rev-parse", "HEAD")
+    assert git_state(tmp_path, paths=("code",)) == {"git_sha": first, "git_dirty": False}
+    assert git_state(tmp_path)["git_sha"] == head
+    (tmp_path / "records" / "f.txt").write_text("2")
+    assert git_state(tmp_path, paths=("code",))["git_dirty"] is False
+    (tmp_path / "code" / "f.txt").write_text("2")
+    assert git_state(tmp_path, paths=("code",))["git_dirty"] is True

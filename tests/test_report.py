@@ -211,6 +211,9 @@ def test_broken_runs_are_reported_never_crash_and_never_written(tmp_path: Path) 
     assert tree_state(runs) == before, "the collector must not write, touch or delete anything under runs/"
     assert not [s.id for s in statuses.values() if s.status == "error"], [s.error for s in statuses.values()]
     readme = (out / "README.md").read_text()
+    render_all(runs, tmp_path / "again")  # the same runs give the same file, whenever it is made
+    assert (tmp_path / "again" / "README.md").read_text().replace("again", "out") == readme.replace("again", "out")
+    assert "- Collector: `" in readme and "- Newest evidence: 20" in readme
     for gap in ("carracing_plls_ppo/default seed=3: empty run dir",
                 "carracing_plls_ppo/default seed=1: status.json missing or unreadable",
                 "carracing_ppo/default seed=1: metrics/eval.jsonl: truncated last line skipped",
