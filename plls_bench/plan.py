@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import json
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -99,6 +100,22 @@ def load_rates(path: Path = THROUGHPUT_FILE) -> dict[str, float]:
     except (OSError, ValueError):
         return {}
     return {key: float(entry["value"]) for key, entry in data.get("rates", {}).items()}
+
+
+def rate_machines(path: Path = THROUGHPUT_FILE) -> dict[str, int]:
+    """How many measured rates each CPU gave, by the CPU's name in the rate's ``machine`` field
+    (``vm: x86_64, <CPU>, 2 cores, load ...``; "an unnamed CPU" for rates measured before the
+    name was written), most rates first."""
+    try:
+        entries = json.loads(path.read_text()).get("rates", {}).values()
+    except (OSError, ValueError):
+        return {}
+    names: Counter[str] = Counter()
+    for entry in entries:
+        parts = [part.strip() for part in str(entry.get("machine", "")).split(",")]
+        named = len(parts) > 2 and not parts[1].endswith("cores")
+        names[parts[1] if named else "an unnamed CPU"] += 1
+    return dict(names.most_common())
 
 
 def preset_config(experiment: str, profile: str, runs_dir: str, overrides: tuple[str, ...] = ()) -> Config:

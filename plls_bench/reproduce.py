@@ -22,7 +22,8 @@ from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.files import read_json
 from plls_bench.launch import launcher_overrides, run_plans
-from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep
+from plls_bench.devices import cpu_model
+from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, Run, config_hash, variant_overrides
@@ -60,6 +61,10 @@ def format_plan(plans: list[PresetPlan], jobs: int) -> str:
     if unknown:
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
+    machines = rate_machines()
+    if machines:  # rates move with the CPU (CNN training 2x between two 2-core VMs: BENCHMARKS.md)
+        rows.append(f"rates measured on {', '.join(f'{cpu} ({n})' for cpu, n in machines.items())}; "
+                    f"this machine: {cpu_model()}, {os.cpu_count()} cores")
     return "\n".join(rows)
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.plan import list_presets, plan_profile
+from plls_bench.plan import list_presets, plan_profile, rate_machines
 from plls_bench.runner import execute
 from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path
 
@@ -55,7 +55,19 @@ def test_dry_run_prints_the_whole_paper_plan_and_runs_nothing(tmp_path: Path) ->
     for preset in list_presets():
         assert preset in done.stdout
     assert "CPU-hours" in done.stdout and "trials to run" in done.stdout
+    assert "rates measured on " in done.stdout and "; this machine: " in done.stdout  # the estimate's basis
     assert not runs.exists()
+
+
+def test_rates_are_counted_by_the_cpu_that_measured_them(tmp_path: Path) -> None:
+    path = tmp_path / "throughput.json"
+    machines = ["vm: x86_64, AMD EPYC, 2 cores, load average 1, 1, 1; torch 2.13.0+cpu",
+                "vm: x86_64, Intel(R) Xeon(R) Processor, 2 cores, load average 1, 1, 1; torch 2.13.0+cpu",
+                "vm: x86_64, AMD EPYC, 2 cores, load average 2, 2, 2; torch 2.13.0+cpu",
+                "vm: x86_64, 2 cores, load average 1, 1, 1; torch 2.13.0+cpu"]  # written before CPU names
+    path.write_text(json.dumps({"rates": {f"k{i}": {"machine": m, "value": 1.0} for i, m in enumerate(machines)}}))
+    assert rate_machines(path) == {"AMD EPYC": 2, "Intel(R) Xeon(R) Processor": 1, "an unnamed CPU": 1}
+    assert rate_machines(tmp_path / "missing.json") == {}
 
 
 def test_plan_counts_done_trials_and_orders_artifacts_first(runs_dir: Path) -> None:
