@@ -20,9 +20,9 @@ from plls_bench.composition import CONF_DIR, filmstrip_config
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, FilmstripConfig
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
+from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
 from plls_bench.launch import launcher_overrides, run_plans
-from plls_bench.devices import cpu_model
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
