@@ -20,8 +20,7 @@ from typing import Any
 from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
-from plls_bench.files import read_json
-from plls_bench.records.layout import (PARTIAL_MARKER, is_recorded, partial_record, recorded_artifact,
+from plls_bench.records.layout import (is_recorded, partial_iteration, partial_record, recorded_artifact,
                                        records_dir_for)
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
@@ -186,7 +185,7 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
         if local is not None:
             return local[1], "run dir"
     if partial is not None:
-        return int(read_json(partial / PARTIAL_MARKER)["iteration"]), "partial record"
+        return partial_iteration(partial) or 0, "partial record"
     return 0, ""
 
 

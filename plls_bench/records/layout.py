@@ -66,6 +66,12 @@ def partial_record(records_dir: str | Path, key: str | Path, cfg_hash: str) -> P
     return path if isinstance(marker, dict) and marker.get("config_hash") == cfg_hash else None
 
 
+def partial_iteration(path: str | Path) -> int | None:
+    """The iteration a partial record's checkpoint holds (its marker's), or None without one."""
+    marker = read_json(Path(path) / PARTIAL_MARKER)
+    return int(marker["iteration"]) if isinstance(marker, dict) and "iteration" in marker else None
+
+
 def recorded_artifact(runs_dir: str | Path, kind: str, name: str) -> Path | None:
     """The complete copy of artifact ``<kind>/<name>`` in the records beside ``runs_dir``, or None."""
     path = records_dir_for(runs_dir) / ARTIFACTS_DIR / kind / name

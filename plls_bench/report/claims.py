@@ -21,8 +21,7 @@ import numpy as np
 import pandas as pd
 
 from plls_bench.config import BUDGET_NAMES
-from plls_bench.files import read_json
-from plls_bench.records.layout import PARTIAL_MARKER
+from plls_bench.records.layout import partial_iteration
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.efficiency import fmt_convergence, parameter_counts
 from plls_bench.report.load import Runs
@@ -248,11 +247,8 @@ def _no_runs_reason(runs: Runs, name: str) -> str:
     partial = runs.partial_trials(name)
     if not partial:
         return f"no runs of {name}"
-    where = []
-    for trial in partial:
-        marker = read_json(trial.path / PARTIAL_MARKER)
-        at = marker.get("iteration") if isinstance(marker, dict) else None
-        where.append(f"seed {trial.seed}" + ("" if at is None else f" at iteration {at}"))
+    where = [f"seed {t.seed}" + ("" if (at := partial_iteration(t.path)) is None else f" at iteration {at}")
+             for t in partial]
     return f"no finished runs of {name}; unfinished, in partial records: {', '.join(where)}"
 
 
