@@ -73,6 +73,10 @@ class TrainRow(Counters):
         return cls(**{k: record.get(k) for k in _COUNTERS}, metrics=metrics)
 
 
+# which actions a test episode takes: the Gaussian's mean, or samples from it (docs/decisions.md#d20)
+POLICIES = ("deterministic", "stochastic")
+
+
 @dataclass(frozen=True)
 class EvalRow(Counters):
     """An ``eval.jsonl`` row: the deterministic policy's test episodes (``episode_returns``,
@@ -105,6 +109,16 @@ class EvalRow(Counters):
         values["episode_returns"] = list(record.get("episode_returns") or [])
         values["episode_lengths"] = list(record.get("episode_lengths") or [])
         return cls(**values, return_mean=mean)
+
+    def mean_return(self, policy: str) -> float | None:
+        """The mean test return of the ``policy`` in :data:`POLICIES`; None where it was not evaluated
+        (a missing stochastic mean is that of its episodes, as for ``return_mean``)."""
+        if policy not in POLICIES:
+            raise ValueError(f"policy {policy!r}: expected one of {', '.join(POLICIES)}")
+        if policy == "deterministic":
+            return self.return_mean
+        return _mean_of({"mean": self.return_mean_stochastic, "episodes": self.episode_returns_stochastic},
+                        "mean", "episodes")
 
 
 def parallel_envs(cfg: Lookup) -> int:

@@ -68,8 +68,10 @@ def write_npz(run: Run, relpath: str, **arrays: np.ndarray) -> None:
 
 
 # --------------------------------------------------------------------------- metric files
-def write_eval(run: Run, cfg: Config, iterations: Sequence[int], returns: Sequence[Sequence[float]]) -> None:
-    """``metrics/eval.jsonl``: one row per evaluation with its episode returns (and train rows)."""
+def write_eval(run: Run, cfg: Config, iterations: Sequence[int], returns: Sequence[Sequence[float]],
+               stochastic_offset: float = -1.0) -> None:
+    """``metrics/eval.jsonl``: one row per evaluation with its episode returns (and train rows);
+    PPO's sampled-action returns are the deterministic ones plus ``stochastic_offset``."""
     ppo = cfg.algo.name == "ppo"
     per_iteration = cfg.algo.ppo.n_envs * cfg.algo.ppo.n_steps if ppo else cfg.env.action_repeat
     for iteration, episodes in zip(iterations, returns):
@@ -78,7 +80,7 @@ def write_eval(run: Run, cfg: Config, iterations: Sequence[int], returns: Sequen
                "wall_s": 1.5 * iteration, "episode_returns": list(map(float, episodes)),
                "return_mean": float(np.mean(episodes)), "episode_lengths": [100] * len(episodes)}
         if ppo:
-            row["episode_returns_stochastic"] = [float(r) - 1.0 for r in episodes]
+            row["episode_returns_stochastic"] = [float(r) + stochastic_offset for r in episodes]
         run.log("eval", row)
         run.log("train", {"env_steps": env_steps, "iteration": iteration, "wall_s": 1.5 * iteration,
                           "loss/policy": 0.1, "loss/value": 1.0, "perf/sps": 1000.0})

@@ -324,6 +324,12 @@ def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: p
     assert report_main(args) == 2
     assert "claims.csv line 2: unknown kind 'repr_mse_typo'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+    line = next(i for i, text in enumerate(claims) if ",final:stochastic," in text)  # a misspelt policy
+    claims[1] = claims[1].replace("repr_mse_typo", "repr_mse")
+    claims[line] = claims[line].replace(",final:stochastic,", ",final:stochastc,")
+    (paper / "claims.csv").write_text("\n".join(claims))
+    assert report_main(args) == 2
+    assert f"claims.csv line {line + 1}: unknown param 'final:stochastc'" in capsys.readouterr().err
 
 
 def test_a_long_figure_title_is_wrapped_to_the_figure_width_not_clipped() -> None:

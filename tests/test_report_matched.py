@@ -16,11 +16,14 @@ from tests.synthetic_runs import finish, make_run, write_eval, write_params
 FIG18 = "PL-LS with PPO beats PPO on CarRacing"
 
 
-def arm(runs: Path, experiment: str, seeds: int, iterations: list[int], returns, *overrides: str) -> None:
-    """``seeds`` finished trials of ``experiment``; ``returns(seed, iteration)`` is an evaluation's mean."""
+def arm(runs: Path, experiment: str, seeds: int, iterations: list[int], returns, *overrides: str,
+        stochastic_offset: float = -1.0) -> None:
+    """``seeds`` finished trials of ``experiment``; ``returns(seed, iteration)`` is an evaluation's
+    mean (deterministic policy; sampled actions score ``stochastic_offset`` more)."""
     for seed in range(seeds):
         run, cfg = make_run(runs, experiment, seed, "quick", f"budget.trials={seeds}", *overrides)
-        write_eval(run, cfg, iterations, [[returns(seed, i) - 1, returns(seed, i) + 1] for i in iterations])
+        write_eval(run, cfg, iterations, [[returns(seed, i) - 1, returns(seed, i) + 1] for i in iterations],
+                   stochastic_offset)
         write_params(run, 8802, 4394)
         finish(run, cfg)
 
@@ -55,6 +58,23 @@ def test_arms_at_different_budgets_are_judged_at_the_common_evaluation(tmp_path:
     fig = BY_ID["fig18"].build(Runs(tmp_path / "runs"), BY_ID["fig18"], Options("iteration", PAPER_DIR)).figure
     marks = [line for line in fig.axes[0].get_lines() if line.get_label() == "compared at 10"]
     assert len(marks) == 1 and list(marks[0].get_xdata()) == [10, 10]
+
+
+def test_the_sampled_action_row_judges_the_same_episodes_with_sampled_actions(tmp_path: Path) -> None:
+    # Acting on the mean, PL-LS leads (200 vs 50); sampling actions, PPO does (50 vs 300). The
+    # paper does not say which its test episodes did, so each reading gets its own verdict.
+    arm(tmp_path / "runs", "carracing_plls_ppo", 3, [0, 32, 64], lambda seed, i: 200.0 + seed, stochastic_offset=-150)
+    arm(tmp_path / "runs", "carracing_ppo", 3, [0, 32, 64], lambda seed, i: 50.0 + seed, stochastic_offset=250)
+    table = claims(tmp_path / "runs", tmp_path / "out")
+    deterministic, sampled = row(table, f"{FIG18} (final return)"), row(table, f"{FIG18} (final return; sampled")
+    assert (deterministic["suite_value"], deterministic["verdict"]) == (1, "reproduced")
+    assert (sampled["suite_value"], sampled["verdict"]) == (0, "not reproduced")
+    assert sampled["suite"].endswith("(final:stochastic: 51 vs 301)")
+    assert sampled["budget"] == deterministic["budget"] == "quick (3 + 3 trials), at 1,024,000 env steps (iteration 64)"
+    fig18 = BY_ID["fig18"].build(Runs(tmp_path / "runs"), BY_ID["fig18"], Options("iteration", PAPER_DIR))
+    final = fig18.data.query("x == 64").set_index("series")["mean"]  # Fig. 18 draws both readings
+    assert final.to_dict() == {"PL-LS + PPO": 201, "PL-LS + PPO, sampled actions": 51, "PPO": 51,
+                               "PPO, sampled actions": 301}
 
 
 def render_stats(root: Path) -> Path:

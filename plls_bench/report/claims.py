@@ -21,101 +21,39 @@ import numpy as np
 import pandas as pd
 
 from plls_bench.config import BUDGET_NAMES
+from plls_bench.metrics import POLICIES
 from plls_bench.records.layout import partial_iteration
 from plls_bench.report.base import Entry, Options, Output
+from plls_bench.report.claim_values import (budget_text, mean_estimate, param_count, repr_mse, steps_to_goal,
+                                            study_metric)
 from plls_bench.report.efficiency import fmt_convergence, parameter_counts
 from plls_bench.report.load import Runs
 from plls_bench.report.matched import Matched, NotJudged, at_text, finished_counts, matched, require_trials
 from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_curves
-from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement, summarise
+from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement
 from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
 from plls_bench.report.sweep_claim import sweep_best
 from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, Estimate,
                                         rule_text, verdict)
-from plls_bench.runs import PARAMS_FILE
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
-NAN2 = (math.nan, math.nan)
+SCORES = ("final", "auc")  # p_improvement's per-trial score: the final return, or the mean over the curve
 
 
 # --------------------------------------------------------------------------- measurements
+def _policy(claim: dict[str, str]) -> str:
+    """The test returns a curve claim reads: a ``param`` that is, or ends in ``:``, a policy of
+    POLICIES ("final:stochastic": sampled actions); the deterministic policy otherwise (D20)."""
+    last = claim["param"].rpartition(":")[2]
+    return last if last in POLICIES else "deterministic"
+
+
 def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:
-    curves = load_curves(runs, runs.experiment(name), name, claim["x_axis"] or DEFAULT_X_AXIS)
+    policy = _policy(claim)
+    curves = load_curves(runs, runs.experiment(name), name, claim["x_axis"] or DEFAULT_X_AXIS, policy)
     if not curves.n:
-        raise NotJudged(f"no evaluations of {name}")
+        raise NotJudged(f"no evaluations of {name}" + ("" if policy == "deterministic" else f" with {policy} returns"))
     return curves
-
-
-def _budget(runs: Runs, *names: str, n: list[int] | None = None) -> str:
-    exps = [runs.experiment(name) for name in names]
-    counts = n or [len(e.trials) for e in exps]
-    word = "trial" if counts == [1] else "trials"
-    return f"{'/'.join(sorted({e.budget or NA for e in exps}))} ({' + '.join(map(str, counts))} {word})"
-
-
-def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Mean test MSE over distinct trained models (trials sharing an artifact count once).
-    ``param`` is ``model`` (z sampled, ``test_mse``) or ``model:field`` (e.g. the decode(mu)
-    reading, ``action:test_mse_posterior_mean``)."""
-    exp = runs.experiment(claim["experiment"])
-    model, _, field = claim["param"].partition(":")
-    field = field or "test_mse"
-    values: dict[str, float] = {}
-    for trial in exp.trials:
-        entry = (runs.json(exp, trial, "metrics/repr_test.json") or {}).get(model)
-        if isinstance(entry, dict) and isinstance(entry.get(field), (int, float)):
-            values.setdefault(str(entry.get("artifact", trial.seed)), float(entry[field]))
-    if not values:
-        raise NotJudged(f"no {field} of model {model} in {exp.name}")
-    # stochastic: each trained model is one draw (trials sharing a model count once)
-    require_trials([len(values)], _budget(runs, exp.name), "trained models")
-    return _mean_estimate(list(values.values()), "model", _budget(runs, exp.name))
-
-
-def study_metric(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Mean over trials of the number ``param`` of ``metrics/study.json`` (a latent-space study;
-    each trial samples its own actions from the same V_a)."""
-    exp = runs.experiment(claim["experiment"])
-    values = [(runs.json(exp, trial, "metrics/study.json") or {}).get(claim["param"]) for trial in exp.trials]
-    values = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
-    if not values:
-        raise NotJudged(f"no {claim['param']} in {exp.name}'s metrics/study.json")
-    require_trials([len(values)], _budget(runs, exp.name, n=[len(values)]))  # stochastic: actions are sampled
-    return _mean_estimate(values, "trial", _budget(runs, exp.name, n=[len(values)]))
-
-
-def _mean_estimate(values: list[float], unit: str, budget: str) -> Estimate:
-    """The mean of ``values`` with its bootstrap CI, shown as mean ± std (n units), CI."""
-    s = summarise(np.array(values))
-    text = f"{fmt(s.mean)} ± {fmt(s.std)} ({s.n} {unit}{'s' if s.n > 1 else ''})"
-    if not math.isnan(s.mean_ci[0]):
-        text += f", CI [{fmt(s.mean_ci[0])}, {fmt(s.mean_ci[1])}]"
-    return Estimate(s.mean, s.mean_ci, text, budget)
-
-
-def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Deterministic (the architecture fixes it): one trial suffices, even an unfinished one carried
-    as a partial record."""
-    params = parameter_counts(runs, runs.experiment(claim["experiment"]))
-    if params is None:
-        raise NotJudged(f"no {PARAMS_FILE} in {claim['experiment']}")
-    value = float(getattr(params, claim["param"]))
-    budget = params.source_text or _budget(runs, claim["experiment"])
-    return Estimate(value, NAN2, fmt(value), budget)
-
-
-def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Fig. 11's filmstrip: the paper drives one car with one learned policy from a fixed s0. The
-    suite films the first trial's policy, acting deterministically from that s0, so one trial is
-    the measurement (it stays one value, with no CI)."""
-    exp = runs.experiment(claim["experiment"])
-    trial = runs.first_with(exp, "filmstrip/filmstrip.json")
-    steps = (runs.json(exp, trial, "filmstrip/filmstrip.json") or {}).get("steps_to_goal") if trial else None
-    if trial is None:
-        raise NotJudged(f"no filmstrip in {exp.name}")
-    value = math.inf if not isinstance(steps, (int, float)) else float(steps)
-    text = "goal not reached" if math.isinf(value) else f"{fmt(value)} steps (seed {trial.seed})"
-    return Estimate(value, NAN2, text, _budget(runs, exp.name, n=[1]))
 
 
 def convergence_point(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -123,11 +61,11 @@ def convergence_point(runs: Runs, claim: dict[str, str]) -> Estimate:
     evaluations all of them reach."""
     curves = _curves(runs, claim["experiment"], claim)
     counts = finished_counts(curves)
-    require_trials(counts, _budget(runs, claim["experiment"], n=counts))
+    require_trials(counts, budget_text(runs, claim["experiment"], n=counts))
     result = convergence(curves, curves.finished_seeds())
     if result is None:
         raise NotJudged(f"no evaluation that every finished trial of {claim['experiment']} reaches")
-    budget = f"{_budget(runs, claim['experiment'], n=[result.n])}, {at_text(curves, result.last_x)}"
+    budget = f"{budget_text(runs, claim['experiment'], n=[result.n])}, {at_text(curves, result.last_x)}"
     return Estimate(result.x, result.ci, fmt_convergence(result), budget, reach=result.last_x)
 
 
@@ -136,9 +74,9 @@ def _pair(runs: Runs, claim: dict[str, str]) -> tuple[Matched, str]:
     evaluations they all reach, and the budget text saying where they are judged."""
     a, b = _curves(runs, claim["experiment"], claim), _curves(runs, claim["baseline"], claim)
     counts = finished_counts(a, b)
-    require_trials(counts, _budget(runs, claim["experiment"], claim["baseline"], n=counts))
+    require_trials(counts, budget_text(runs, claim["experiment"], claim["baseline"], n=counts))
     pair = matched(a, b, runs=runs)
-    return pair, f"{_budget(runs, claim['experiment'], claim['baseline'], n=pair.counts)}, {pair.at}"
+    return pair, f"{budget_text(runs, claim['experiment'], claim['baseline'], n=pair.counts)}, {pair.at}"
 
 
 def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
@@ -174,24 +112,26 @@ def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
 
 def p_improvement(runs: Runs, claim: dict[str, str]) -> Estimate:
     """P(A > B) over trials' ``final`` returns (at the largest common evaluation, not each arm's
-    own last) or ``auc`` (mean return over the common evaluations)."""
+    own last) or ``auc`` (mean return over the common evaluations); ``final:stochastic`` reads
+    the sampled-action returns of the same test episodes."""
     pair, budget = _pair(runs, claim)
-    x, y = ((m[:, -1] if claim["param"] == "final" else m.mean(axis=1)) for m in pair.values)
+    score = claim["param"].partition(":")[0]
+    x, y = ((m[:, -1] if score == "final" else m.mean(axis=1)) for m in pair.values)
     value, ci = probability_of_improvement(x, y)
     text = f"{fmt_ci(value, ci, 3)} ({claim['param']}: {fmt(float(np.mean(x)))} vs {fmt(float(np.mean(y)))})"
     return Estimate(value, ci, text, budget, reach=float(pair.grid[-1]))
 
 
 def final_return(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Mean over finished trials of the final evaluation's mean deterministic return (a baseline
-    checked against a published number), at the last evaluation all of them reach. Stochastic:
-    needs MIN_TRIALS finished trials."""
+    """Mean over finished trials of the final evaluation's mean return of the ``param`` policy (a
+    baseline checked against a published number), at the last evaluation all of them reach.
+    Stochastic: needs MIN_TRIALS finished trials."""
     curves = _curves(runs, claim["experiment"], claim)
     counts = finished_counts(curves)
-    require_trials(counts, _budget(runs, claim["experiment"], n=counts))
+    require_trials(counts, budget_text(runs, claim["experiment"], n=counts))
     arm = matched(curves, runs=runs)
-    budget = f"{_budget(runs, claim['experiment'], n=arm.counts)}, {arm.at}"
-    return _mean_estimate([float(v) for v in arm.values[0][:, -1]], "trial", budget)
+    budget = f"{budget_text(runs, claim['experiment'], n=arm.counts)}, {arm.at}"
+    return mean_estimate([float(v) for v in arm.values[0][:, -1]], "trial", budget)
 
 
 def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
@@ -260,6 +200,16 @@ def _is_number(text: str) -> bool:
     return True
 
 
+def _param_problems(row: dict[str, str]) -> list[str]:
+    """A return claim's ``param``: ``final`` or ``auc``, optionally ``:<policy>``, for
+    p_improvement; a policy for final_return. Other kinds' params name models, fields or files."""
+    score, _, policy = row["param"].partition(":")
+    valid = {"p_improvement": score in SCORES and policy in ("", *POLICIES),
+             "final_return": row["param"] in POLICIES}.get(row["kind"], True)
+    return [] if valid else [f"param {row['param']!r} (expected {'/'.join(SCORES)}[:policy] or a policy, "
+                             f"policies {', '.join(POLICIES)})"]
+
+
 def read_claims(paper_dir: Path) -> list[dict[str, str]]:
     """``claims.csv``, checked so that a typo fails loudly naming the row."""
     rows = read_paper(paper_dir, "claims")
@@ -269,6 +219,7 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
         numbers = ("threshold", "threshold_high", "paper_value", "paper_pm", "from_x", "needs_x")
         problems += [f"{key} {row[key]!r} (not a number)" for key in numbers
                      if (row[key] or key == "threshold") and not _is_number(row[key])]
+        problems += _param_problems(row)
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     return rows

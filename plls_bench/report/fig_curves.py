@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from plls_bench.report.base import BASE_BLUE, PLLS_RED, Entry, Options, Output
+from plls_bench.report.base import BASE_BLUE, PLLS_RED, Entry, Options, Output, Source
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import empty_output, new_figure, suptitle
 from plls_bench.report.matched import NotJudged, matched
@@ -31,11 +31,13 @@ def _budgets(runs: Runs, entry: Entry) -> str:
     return f"budget {'/'.join(names)}" if names else "no runs"
 
 
-def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
+def return_curves(runs: Runs, entry: Entry, opts: Options, *, sampled: bool = False) -> Output:
     """Mean return over trials against ``opts.x_axis``, one series per source; a dashed line where
     the sources are compared (the last evaluation every finished trial of each reaches) when some
     curve goes further, and the random policy's mean episode return read from the data preset in
-    ``entry.references`` (``metrics/dataset.json``: the episodes its random-policy dataset came from)."""
+    ``entry.references`` (``metrics/dataset.json``: the episodes its random-policy dataset came from).
+    ``sampled`` adds each source's mean return on the same test episodes with sampled actions, a
+    thin dashed line (docs/decisions.md#d20: the paper does not say which its curves show)."""
     methods = [(s, load_curves(runs, runs.experiment(s.experiment), s.label, opts.x_axis)) for s in entry.sources]
     trials = {s.label: c.n for s, c in methods}
     title = f"{entry.title} ({_budgets(runs, entry)})"
@@ -51,6 +53,8 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
             note = f", {early} stop early" if early else ""
             _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{note})")
             frames.append(frame)
+            if sampled:
+                frames += _draw_sampled(ax, runs, source, opts.x_axis)
     if opts.x_axis != "wall_s":  # wall time is interpolated per trial: no evaluation x is shared
         _mark_common_x(ax, [c for _, c in methods if c.n and c.finished_seeds().any()])
     for preset in entry.references:
@@ -65,6 +69,19 @@ def return_curves(runs: Runs, entry: Entry, opts: Options) -> Output:
     ax.legend(loc="best", fontsize=8)
     suptitle(fig, entry.ref, title, trials)
     return Output(fig, pd.concat(frames, ignore_index=True), trials=trials)
+
+
+def _draw_sampled(ax, runs: Runs, source: Source, x_axis: str) -> list[pd.DataFrame]:
+    """The source's mean return with sampled actions, where its runner records one (PPO)."""
+    exp = runs.experiment(source.experiment)
+    if exp.cfg("algo.name") != "ppo":
+        return []
+    curves = load_curves(runs, exp, source.label, x_axis, policy="stochastic")
+    if not curves.n:
+        return []
+    frame = _band_frame(f"{source.label}, sampled actions", source.experiment, x_axis, curves.grid, curves.values)
+    ax.plot(frame["x"], frame["mean"], color=source.color, lw=1.0, ls="--", label=f"{source.label}, sampled actions")
+    return [frame]
 
 
 def _mark_common_x(ax, curves: list[Curves]) -> None:

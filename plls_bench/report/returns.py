@@ -52,12 +52,14 @@ def x_label(exp: Experiment, x_axis: str) -> str:
             "env_steps_per_env": "environment steps per parallel env"}[x_axis]
 
 
-def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X_AXIS) -> Curves:
-    """Every trial of ``exp`` with at least one usable evaluation, on one grid."""
+def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X_AXIS,
+                policy: str = "deterministic") -> Curves:
+    """Every trial of ``exp`` with at least one usable evaluation of ``policy`` (in
+    :data:`~plls_bench.metrics.POLICIES`), on one grid."""
     curves = Curves(label, exp, x_axis)
     pairs = []
     for trial in exp.trials:
-        x, y = _trial_curve(runs, exp, trial, x_axis, curves.env_steps)
+        x, y = _trial_curve(runs, exp, trial, x_axis, curves.env_steps, policy)
         if len(x):
             curves.seeds.append(trial.seed)
             pairs.append((x, y))
@@ -65,9 +67,9 @@ def load_curves(runs: Runs, exp: Experiment, label: str, x_axis: str = DEFAULT_X
     return curves
 
 
-def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str,
-                 env_steps: dict[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """A trial's (x, mean return) points; ``env_steps`` gains the env steps at each x."""
+def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str, env_steps: dict[float, float],
+                 policy: str = "deterministic") -> tuple[np.ndarray, np.ndarray]:
+    """A trial's (x, mean return of ``policy``) points; ``env_steps`` gains the env steps at each x."""
     points: dict[float, float] = {}
     skipped = duplicated = 0
     scale = float(parallel_envs(trial.cfg)) if x_axis == "env_steps_per_env" else 1.0
@@ -75,15 +77,16 @@ def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str,
     for record in runs.records(exp, trial, "eval"):
         row = EvalRow.from_record(record)
         x = None if row is None else row.x(source_key)
-        if row is None or x is None or row.return_mean is None:
+        value = None if row is None else row.mean_return(policy)
+        if x is None or value is None:
             skipped += 1
             continue
         duplicated += (x / scale) in points
-        points[x / scale] = row.return_mean
+        points[x / scale] = value
         if (steps := row.x("env_steps")) is not None:
             env_steps[x / scale] = steps
     if skipped:
-        runs.gap(exp, trial, f"metrics/eval.jsonl: {skipped} row(s) without {source_key} or returns skipped")
+        runs.gap(exp, trial, f"metrics/eval.jsonl: {skipped} row(s) without {source_key} or {policy} returns skipped")
     if duplicated:
         runs.gap(exp, trial, f"metrics/eval.jsonl: {duplicated} duplicate evaluation(s); last kept")
     xs = np.array(sorted(points))
