@@ -132,3 +132,22 @@ def test_committed_tables_regenerate_from_the_committed_records(tmp_path: Path) 
     for name in TABLES:
         assert (tmp_path / "out" / "tables" / f"{name}.csv").read_text() == \
             (COMMITTED / "tables" / f"{name}.csv").read_text(), f"results/tables/{name}.csv differs"
+
+
+def test_an_unfinished_copy_of_a_recorded_trial_is_not_carried(tmp_path: Path) -> None:
+    """A stale run dir of a trial that finished elsewhere (its record holds it done, same config)
+    is skipped: no partial record beside the finished one."""
+    records, rng, key = tmp_path / "records", np.random.default_rng(0), "mountaincar_ppo/default/seed=0"
+    finished, cfg = make_run(tmp_path / "gpu" / "runs", "mountaincar_ppo", 0)
+    fill(finished, cfg, rng)
+    finish(finished, cfg)
+    assert export_records(tmp_path / "gpu" / "runs", records).written == [key]
+    stale, cfg = make_run(tmp_path / "cpu" / "runs", "mountaincar_ppo", 0)
+    fill(stale, cfg, rng)
+    (stale.path / "checkpoints" / "ppo-0000002.zip").write_bytes(b"weights at iteration 2")
+    (stale.path / "checkpoints" / "latest.json").write_text(json.dumps(
+        {"model": "ppo-0000002.zip", "normalization": None, "progress": {"iteration": 2}, "rng": {}}))
+    finish(stale, cfg, state="stopped")
+    done = export_records(tmp_path / "cpu" / "runs", records)
+    assert done.partial == [] and done.skipped == [f"{key}: status stopped (its record holds this trial, finished)"]
+    assert not (records / "partial").exists()

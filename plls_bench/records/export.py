@@ -156,6 +156,9 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
             continue
         state = (read_json(run_dir / "status.json") or {}).get("state")
+        if state != STATUS_DONE and _finished_record_of(out / key, written.get("config_hash")):
+            done.skipped.append(f"{key}: status {state} (its record holds this trial, finished)")
+            continue  # a stale copy of a trial finished elsewhere: a partial record would only shadow it
         other = None if replace or state != STATUS_DONE else _other_done_record(out / key, written.get("config_hash"))
         if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
@@ -178,6 +181,12 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         if result is not None:
             _count(done, f"{kind}/{name}", result, done.artifacts, unchanged=False)
     return done
+
+
+def _finished_record_of(target: Path, ours: str | None) -> bool:
+    """Whether ``target`` holds a finished record of the config hash ``ours``."""
+    status, recorded = read_json(target / "status.json") or {}, read_json(target / "config.json") or {}
+    return status.get("state") == STATUS_DONE and ours is not None and recorded.get("config_hash") == ours
 
 
 def _other_done_record(target: Path, ours: str | None) -> str | None:
