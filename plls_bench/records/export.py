@@ -155,11 +155,11 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         config = written.get("config") or {}
         if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
             continue
-        state = (read_json(run_dir / "status.json") or {}).get("state")
-        if state != STATUS_DONE and _finished_record_of(out / key, written.get("config_hash")):
+        state, ours = (read_json(run_dir / "status.json") or {}).get("state"), written.get("config_hash")
+        if state != STATUS_DONE and ours is not None and _done_record_hash(out / key) == ours:
             done.skipped.append(f"{key}: status {state} (its record holds this trial, finished)")
             continue  # a stale copy of a trial finished elsewhere: a partial record would only shadow it
-        other = None if replace or state != STATUS_DONE else _other_done_record(out / key, written.get("config_hash"))
+        other = None if replace or state != STATUS_DONE else _other_done_record(out / key, ours)
         if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
             shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)  # the finished record replaces it
@@ -183,22 +183,21 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
     return done
 
 
-def _finished_record_of(target: Path, ours: str | None) -> bool:
-    """Whether ``target`` holds a finished record of the config hash ``ours``."""
-    status, recorded = read_json(target / "status.json") or {}, read_json(target / "config.json") or {}
-    return status.get("state") == STATUS_DONE and ours is not None and recorded.get("config_hash") == ours
+def _done_record_hash(target: Path) -> str | None:
+    """The config hash of the finished record at ``target`` ("None" if it names none); None when
+    there is no finished record."""
+    if (read_json(target / "status.json") or {}).get("state") != STATUS_DONE:
+        return None
+    return str((read_json(target / "config.json") or {}).get("config_hash"))
 
 
 def _other_done_record(target: Path, ours: str | None) -> str | None:
     """``budget <name>, config <hash>`` of a finished record at ``target`` whose config hash is not
     ``ours`` (the run's); None when there is none (or it is this run's own)."""
-    status, recorded = read_json(target / "status.json") or {}, read_json(target / "config.json") or {}
-    if status.get("state") != STATUS_DONE:
+    theirs = _done_record_hash(target)
+    if theirs is None or theirs == ours:
         return None
-    theirs = recorded.get("config_hash")
-    if theirs == ours:
-        return None
-    budget = ((recorded.get("config") or {}).get("budget") or {}).get("name")
+    budget = (((read_json(target / "config.json") or {}).get("config") or {}).get("budget") or {}).get("name")
     return f"budget {budget}, config {theirs}"
 
 
