@@ -110,6 +110,11 @@ def _ppo_checkpoint() -> ResumeFiles:
     return committed_files
 
 
+def _dbc_checkpoint() -> ResumeFiles:
+    from plls_bench.train.dbc_state import committed_files
+    return committed_files
+
+
 def _ppo_policy_files() -> PolicyFiles:
     from plls_bench.train.checkpoint import policy_files
     return policy_files
@@ -133,7 +138,7 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               not_carried="DBC checkpoint too large to carry", time_limited=True),  # replay + 116 MiB agent (README)
+               load_resume_files=_dbc_checkpoint, time_limited=True),  # pixel DBC's is over MAX_PARTIAL_BYTES
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

@@ -1,6 +1,6 @@
 """Records as carried evidence: reproduce counts recorded trials as done, a recorded policy is
 filmed and evaluated with an empty runs dir (its V_s / V_a restored from the records, no dataset),
-and an interrupted PPO trial continues in a fresh runs dir from its partial record."""
+and an interrupted PPO trial continues in a fresh runs dir from its partial record (DBC's: test_dbc_carry.py)."""
 from __future__ import annotations
 
 import logging
@@ -23,11 +23,11 @@ from plls_bench.runs import Run, config_hash, run_dir_path
 from plls_bench.train import ppo
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset
+from tests.interrupting import interrupted, rows
 from tests.synthetic_runs import make_run
 from tests.test_reproduce import reproduce
 
 KEY = Path("default") / "seed=0"
-VOLATILE = ("wall_s", "perf/")  # timing fields differ between any two runs
 
 
 @pytest.fixture
@@ -59,19 +59,9 @@ def test_reproduce_counts_recorded_trials_as_done_unless_asked_to_rerun(tmp_path
     assert not runs.exists()
 
 
-def test_an_unfinished_dbc_run_is_not_carried(tmp_path: Path, all_budgets: None) -> None:
-    runs = tmp_path / "results" / "runs"
-    cfg = compose_preset("cheetah_dbc", runs)
-    run = Run(run_dir_path(runs, "cheetah_dbc", "default", 0))
-    run.prepare(cfg, config_hash(cfg))
-    run.write_status("running", config_hash=config_hash(cfg))
-    done = export_records(runs)
-    assert done.skipped == ["cheetah_dbc/default/seed=0: status running (DBC checkpoint too large to carry)"]
-    assert not (tmp_path / "results" / "records").exists()
-
-
 def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """An unfinished PPO run is carried with its checkpoint, or not at all (a file over the cap)."""
+    """An unfinished PPO run is carried with its checkpoint (a file over the per-file cap in parts),
+    or not at all (the whole over the partial-record cap)."""
     runs = tmp_path / "results" / "runs"
     run, cfg = make_run(runs, "mountaincar_ppo", 0)
     run.log("eval", {"iteration": 0, "return_mean": 1.0})
@@ -79,16 +69,21 @@ def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.
     run.write_bytes("checkpoints/vecnormalize-0000002.json", b"{}")
     run.write_json("checkpoints/latest.json", {"model": "ppo-0000002.zip", "normalization": "vecnormalize-0000002.json",
                                                "progress": {"iteration": 2}, "rng": {}})
-    monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**19)
+    monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**20)
     done = export_records(runs)
-    assert done.partial == [] and done.skipped == [
-        "mountaincar_ppo/default/seed=0: status running (checkpoints/ppo-0000002.zip over 0 MiB, not carried)"]
-    monkeypatch.undo()
+    assert done.partial == [] and done.skipped == ["mountaincar_ppo/default/seed=0: status running "
+                                                   "(1.0 MiB to carry, over the 1 MiB of a partial record)"]
+    monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**19)
+    monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**21)
     assert export_records(runs).partial == ["mountaincar_ppo/default/seed=0"]
-    marker = read_json(tmp_path / "results" / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY / "partial.json")
+    record = tmp_path / "results" / "records" / PARTIAL_DIR / "mountaincar_ppo" / KEY
+    marker = read_json(record / "partial.json")
     assert marker["iteration"] == 2 and marker["commit"] == "checkpoints/latest.json"
     assert {"metrics/eval.jsonl", "checkpoints/ppo-0000002.zip", "checkpoints/vecnormalize-0000002.json",
             "checkpoints/latest.json"} <= set(marker["files"]), "VecNormalize statistics travel with the checkpoint"
+    assert marker["split"]["checkpoints/ppo-0000002.zip"]["parts"] == [
+        "checkpoints/ppo-0000002.zip.part-000", "checkpoints/ppo-0000002.zip.part-001"]
+    assert max(p.stat().st_size for p in record.rglob("*")) <= 2**19
 
 
 @pytest.mark.slow
@@ -127,26 +122,6 @@ def test_a_recorded_policy_is_filmed_and_evaluated_with_an_empty_runs_dir(
     assert not (runs / "artifacts" / "data").exists(), "restoring V_a needs no dataset"
 
 
-def _interrupted(cfg, run_dir: Path, after: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Run ``cfg`` and stop it as Ctrl-C would, once ``after`` iterations are checkpointed."""
-    real = ppo.PPOTrainer.train_iteration
-
-    def stop(self, at):
-        if at.iteration == after:
-            raise KeyboardInterrupt
-        return real(self, at)
-
-    with monkeypatch.context() as patch:
-        patch.setattr(ppo.PPOTrainer, "train_iteration", stop)
-        with pytest.raises(KeyboardInterrupt):
-            execute(cfg, run_dir)
-
-
-def _rows(run_dir: Path, stream: str) -> list[dict]:
-    return [{k: v for k, v in row.items() if not k.startswith(VOLATILE)}
-            for row in Run(run_dir).read_metrics(stream)]
-
-
 @pytest.mark.slow
 def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_runs_dir(
         tmp_path: Path, all_budgets: None, one_torch_thread: None, monkeypatch: pytest.MonkeyPatch,
@@ -157,7 +132,7 @@ def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_r
     cfgs = {name: compose_preset("mountaincar_ppo", d.parents[2], *overrides) for name, d in dirs.items()}
     assert execute(cfgs["whole"], dirs["whole"]) == "done"
     for name in ("local", "carried"):
-        _interrupted(cfgs[name], dirs[name], 4, monkeypatch)
+        interrupted(cfgs[name], dirs[name], ppo.PPOTrainer, 4, monkeypatch)
     assert execute(cfgs["local"], dirs["local"]) == "done"  # resumed from its own checkpoint
 
     runs = dirs["carried"].parents[2]
@@ -172,7 +147,7 @@ def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_r
     assert f"resuming seed=0 from partial record {partial} at iteration 4" in caplog.text
 
     for stream in ("train", "eval"):
-        carried, local, whole = (_rows(dirs[n], stream) for n in ("carried", "local", "whole"))
+        carried, local, whole = (rows(dirs[n], stream) for n in ("carried", "local", "whole"))
         assert [r["iteration"] for r in carried] == [r["iteration"] for r in whole], "no row lost or duplicated"
         assert carried == local, f"{stream}: resuming from the record is resuming from the checkpoint"
         assert [r for r in carried if r["iteration"] <= 4] == [r for r in whole if r["iteration"] <= 4]
@@ -252,7 +227,7 @@ def test_a_finished_run_never_replaces_a_finished_record_of_another_config(
     fresh_runs = dirs["fresh"].parents[2]
     shutil.copytree(records, fresh_runs.parent / "records")  # a fresh clone's records beside its runs dir
     assert execute(cfgs["fresh"], dirs["fresh"]) == "done"
-    assert _rows(dirs["fresh"], "eval") == _rows(dirs["other"], "eval"), "restored as done, no row twice"
+    assert rows(dirs["fresh"], "eval") == rows(dirs["other"], "eval"), "restored as done, no row twice"
 
     replaced = export_records(dirs["other"].parents[2], records, replace=True)
     assert replaced.written == ["mountaincar_ppo/default/seed=0"]

@@ -7,7 +7,8 @@ rebuild the run's final policy (PPO: the checkpoint ``checkpoints/latest.json`` 
 actor's weights, no replay), each file under :data:`~plls_bench.records.layout.MAX_FILE_BYTES`.
 Records live beside the runs dir (``results/records/`` for ``results/runs/``), in the same
 ``<experiment>/<variant>/seed=<k>`` layout, with the V_s / V_a models they use under
-``artifacts/`` and unfinished PPO runs under ``partial/`` (:mod:`plls_bench.records.layout`).
+``artifacts/`` and unfinished learner runs under ``partial/`` (:mod:`plls_bench.records.layout`; a file
+over the cap travels there in parts).
 
 - ``reproduce`` counts a recorded trial as done (``--rerun-recorded`` runs it again);
 - a trial that starts with a partial record of its config resumes from it

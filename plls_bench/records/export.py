@@ -3,6 +3,7 @@ and the V_s / V_a artifacts they use. ``python -m plls_bench.records`` runs :fun
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shutil
 import sys
@@ -12,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from plls_bench.files import read_json
-from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, PARTIAL_DIR, PARTIAL_MARKER,
-                                       REPR_KINDS, records_dir_for)
+from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, MAX_PARTIAL_BYTES,
+                                       PART_SUFFIX, PARTIAL_DIR, PARTIAL_MARKER, REPR_KINDS, records_dir_for)
 from plls_bench.runner_specs import RUNNERS
 from plls_bench.runs import STATUS_DONE, iter_run_dirs
 
@@ -92,10 +93,19 @@ def export_run(run_dir: Path, target: Path) -> tuple[bool, list[str]]:
     return write_record(target, {**contents, **policy_files(run_dir, config.get("runner"))})
 
 
+def split_parts(rel: str, content: Content) -> tuple[dict[str, bytes], dict[str, Any]]:
+    """A file over the cap as parts ``<rel>.part-<i>`` of at most :data:`MAX_FILE_BYTES`, and what
+    ``partial.json`` says of it: its parts in order, its size and sha256 (checked on restore)."""
+    data = _bytes(content)
+    parts = {f"{rel}{PART_SUFFIX}{i:03d}": data[start:start + MAX_FILE_BYTES]
+             for i, start in enumerate(range(0, len(data), MAX_FILE_BYTES))}
+    return parts, {"parts": list(parts), "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
 def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple[bool, list[str]] | str:
     """An unfinished run's partial record: its files so far, the last checkpoint that resumes it
-    (``RunnerSpec.load_resume_files``) and ``partial.json`` (what to copy back, commit file last);
-    a reason string when it cannot be carried."""
+    (``RunnerSpec.load_resume_files``; a file over the cap in parts) and ``partial.json`` (what to
+    copy back, commit file last); a reason string when it cannot be carried."""
     spec = RUNNERS.get(config.get("runner") or "")
     if spec is None or spec.load_resume_files is None:
         return spec.not_carried if spec else f"runner {config.get('runner')!r} is not registered"
@@ -105,12 +115,17 @@ def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple
     files, iteration = found
     contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
     contents.update({rel: run_dir / rel for rel in files})
-    oversize = [rel for rel, path in contents.items() if _size(path) > MAX_FILE_BYTES]
-    if oversize:  # a run resumed without one of them would lose its rows or its checkpoint
-        return f"{', '.join(oversize)} over {MAX_FILE_BYTES // 2**20} MiB, not carried"
+    total = sum(_size(content) for content in contents.values())
+    if total > MAX_PARTIAL_BYTES:  # a run resumed without one of them would lose its rows or its checkpoint
+        return f"{total / 2**20:.1f} MiB to carry, over the {MAX_PARTIAL_BYTES // 2**20} MiB of a partial record"
+    restored = [rel for rel in contents if rel != "status.json"]
+    split: dict[str, dict[str, Any]] = {}
+    for rel in [rel for rel, content in contents.items() if _size(content) > MAX_FILE_BYTES]:
+        parts, split[rel] = split_parts(rel, contents.pop(rel))
+        contents.update(parts)
     state = (read_json(run_dir / "status.json") or {}).get("state")
     marker = {"config_hash": (read_json(run_dir / "config.json") or {}).get("config_hash"), "state": state,
-              "iteration": iteration, "files": [f for f in contents if f != "status.json"], "commit": files[-1]}
+              "iteration": iteration, "files": restored, "split": split, "commit": files[-1]}
     contents[PARTIAL_MARKER] = (json.dumps(marker, indent=2, sort_keys=True) + "\n").encode()
     return write_record(target, contents)
 

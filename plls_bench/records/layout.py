@@ -18,6 +18,12 @@ from plls_bench.runs import Run
 # One cap for every committed file: a CarRacing V_s model.pt is 6.9 MiB and a CarRacing PPO
 # checkpoint (CNN weights with Adam's moments) 9.8 MiB; a DBC actor ~13 MiB (README "Results collector").
 MAX_FILE_BYTES = 16 * 1024 * 1024
+# A partial record carries a whole checkpoint, so a file over MAX_FILE_BYTES goes in parts
+# (``<name>.part-<i>``, joined on restore), and this caps the record as a whole: a state-SAC
+# checkpoint (a 45 MiB dbc.pt with optimisers, 0.9 MiB of replay per 10k steps) fits; pixel DBC's
+# (a 116 MiB agent and its frame replay) does not, and its trials run to their end on one machine.
+MAX_PARTIAL_BYTES = 64 * 1024 * 1024
+PART_SUFFIX = ".part-"
 EXCLUDED_BUDGETS = ("smoke",)  # smoke runs check the pipeline, not the paper
 PARTIAL_DIR = "partial"
 PARTIAL_MARKER = "partial.json"

@@ -7,8 +7,10 @@ copy cut off half-way is never taken for complete.
 """
 from __future__ import annotations
 
+import hashlib
 import shutil
 from pathlib import Path
+from typing import Any
 
 from plls_bench.artifacts import KEY_FILE
 from plls_bench.files import atomic_write_bytes, read_json
@@ -37,6 +39,18 @@ def seed_from_partial(run_dir: str | Path, runs_dir: str | Path, cfg_hash: str) 
     if (Path(run_dir) / marker["commit"]).exists():
         return None  # the local checkpoint is this machine's own, at least as recent
     files = [f for f in marker["files"] if f != marker["commit"]] + [marker["commit"]]
+    split = marker.get("split", {})
     for rel in files:
-        atomic_write_bytes(Path(run_dir) / rel, (source / rel).read_bytes())
+        data = joined_parts(source, rel, split[rel]) if rel in split else (source / rel).read_bytes()
+        atomic_write_bytes(Path(run_dir) / rel, data)
     return source, int(marker["iteration"])
+
+
+def joined_parts(source: Path, rel: str, split: dict[str, Any]) -> bytes:
+    """A file a partial record holds in parts (``export.split_parts``), joined and checked."""
+    data = b"".join((source / part).read_bytes() for part in split["parts"])
+    if len(data) != split["bytes"] or hashlib.sha256(data).hexdigest() != split["sha256"]:
+        raise RuntimeError(f"partial record {source}: the parts of {rel} do not join to the file it recorded "
+                           f"({split['bytes']} bytes, sha256 {split['sha256'][:12]}...); restore the record from "
+                           "git, or delete it to start the trial afresh")
+    return data

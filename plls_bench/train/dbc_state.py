@@ -28,6 +28,7 @@ from plls_bench.composition import recorded_config
 from plls_bench.config import Config
 from plls_bench.devices import resolve_device
 from plls_bench.envs import make_vec_env
+from plls_bench.files import read_json
 from plls_bench.latent import wrap_latent
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.runs import Run
@@ -98,6 +99,17 @@ def load_checkpoint(run: Run, agent: DBCAgent, replay: FrameReplay,
         raise RuntimeError(f"replay chunks in {run.path / REPLAY_DIR} hold {replay.n_written} slots, "
                            f"the checkpoint expects {saved['replay_written']}")
     return progress
+
+
+def committed_files(run_path: Path) -> tuple[list[str], int] | None:
+    """The run-relative files of the last checkpoint, ``dbc.pt`` (its commit point) last, and its
+    iteration; None without one. What a partial record carries to resume the run elsewhere: its
+    replay chunks (one interrupted half-way goes too and is dropped on resume, as after a kill)."""
+    progress = read_json(Path(run_path) / PROGRESS)
+    if progress is None or not (Path(run_path) / CHECKPOINT).is_file():
+        return None
+    chunks = [str(path.relative_to(run_path)) for _, _, path in _chunks(Run(run_path))]
+    return [*chunks, PROGRESS, CHECKPOINT], int(progress.get("iteration", progress["agent_steps"]))  # older: no iteration
 
 
 def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBCAgent, Box, Representations]:

@@ -1,0 +1,105 @@
+"""An unfinished DBC-runner trial carried across machines as a partial record: state SAC's
+checkpoint (``dbc.pt`` with optimisers, over the per-file cap, goes in parts; its replay chunks
+travel with it), and what is refused: a record over the whole-record cap (pixel DBC's), or parts
+that no longer join to the file they were cut from."""
+from __future__ import annotations
+
+import logging
+import shutil
+from pathlib import Path
+
+import pytest
+
+from plls_bench.files import read_json
+from plls_bench.records import export
+from plls_bench.records.export import export_records
+from plls_bench.records.layout import PARTIAL_DIR
+from plls_bench.records.restore import seed_from_partial
+from plls_bench.runner import execute
+from plls_bench.runs import Run, run_dir_path
+from plls_bench.train import dbc
+from tests.conftest import compose_preset
+from tests.interrupting import interrupted, rows
+from tests.synthetic_runs import make_run
+
+KEY = Path("cheetah_sac_state") / "default" / "seed=0"
+SMALL = ("algo.dbc.hidden_dim=32",)  # the real pipeline, small enough for CI
+
+
+@pytest.fixture
+def all_budgets(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Export smoke runs too: the real pipeline at its smallest budget stands in for a real one."""
+    monkeypatch.setattr(export, "EXCLUDED_BUDGETS", ())
+
+
+@pytest.mark.slow
+def test_an_interrupted_state_sac_trial_continues_from_its_partial_record_in_a_fresh_runs_dir(
+        tmp_path: Path, all_budgets: None, one_torch_thread: None, monkeypatch: pytest.MonkeyPatch,
+        caplog: pytest.LogCaptureFixture) -> None:
+    dirs = {name: run_dir_path(tmp_path / name / "results" / "runs", *KEY.parts[:2], 0) for name in ("local", "carried")}
+    cfgs = {name: compose_preset("cheetah_sac_state", d.parents[2], *SMALL) for name, d in dirs.items()}
+    for name in dirs:  # the first evaluation (200 env steps) is the first checkpoint
+        interrupted(cfgs[name], dirs[name], dbc.DBCTrainer, 200, monkeypatch)
+    assert execute(cfgs["local"], dirs["local"]) == "done"  # resumed from its own checkpoint
+
+    runs = dirs["carried"].parents[2]
+    checkpoint = (dirs["carried"] / "checkpoints" / "dbc.pt").read_bytes()
+    monkeypatch.setattr(export, "MAX_FILE_BYTES", len(checkpoint) // 3 + 1)  # as a 45 MiB state-SAC dbc.pt is to 16 MiB
+    done = export_records(runs)
+    partial = runs.parent / "records" / PARTIAL_DIR / KEY
+    assert done.partial == [str(KEY)] and not done.skipped
+    marker = read_json(partial / "partial.json")
+    assert marker["iteration"] == 200 and marker["commit"] == "checkpoints/dbc.pt"
+    assert not (partial / "checkpoints" / "dbc.pt").exists() and len(marker["split"]["checkpoints/dbc.pt"]["parts"]) == 3
+    assert any(f.startswith("checkpoints/replay/chunk_") for f in marker["files"]), "the replay travels too"
+
+    shutil.rmtree(runs)
+    with caplog.at_level(logging.INFO, logger="plls_bench.runner"):
+        assert execute(cfgs["carried"], dirs["carried"]) == "done"
+    assert f"resuming seed=0 from partial record {partial} at iteration 200" in caplog.text
+    for stream in ("train", "eval"):
+        assert rows(dirs["carried"], stream) == rows(dirs["local"], stream), \
+            f"{stream}: resuming from the record is resuming from the checkpoint"
+    assert [r["env_steps"] for r in rows(dirs["carried"], "eval")] == [0, 200, 400]
+    assert (dirs["carried"] / "checkpoints" / "dbc.pt").read_bytes() != checkpoint, "it trained on"
+    assert export_records(runs).written == [str(KEY)] and not partial.exists(), "done replaces partial"
+
+
+def _checkpoint(run: Run, size: int) -> Run:
+    """A synthetic DBC checkpoint in ``run``: a ``size``-byte ``dbc.pt`` and one replay chunk."""
+    run.log("eval", {"iteration": 0, "return_mean": 0.0})
+    run.write_bytes("checkpoints/replay/chunk_000000000000_000000000051.npz", b"r" * 1000)
+    run.write_json("checkpoints/progress.json", {"iteration": 50, "agent_steps": 50, "replay_written": 51})
+    run.write_bytes("checkpoints/dbc.pt", bytes(range(256)) * (size // 256))
+    return run
+
+
+def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    runs = tmp_path / "results" / "runs"
+    run, _ = make_run(runs, "cheetah_dbc", 0)
+    assert export_records(runs).skipped == ["cheetah_dbc/default/seed=0: status running (no checkpoint to carry)"]
+    _checkpoint(run, 2**16)
+    monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)  # as pixel DBC's ~300 MiB is to 64 MiB
+    [reason] = export_records(runs).skipped
+    assert reason.startswith("cheetah_dbc/default/seed=0: status running (0.1 MiB to carry, over the 0 MiB")
+    assert not (tmp_path / "results" / "records").exists()
+
+
+def test_parts_that_do_not_join_to_the_recorded_file_are_refused(tmp_path: Path,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    runs = tmp_path / "results" / "runs"
+    run = _checkpoint(make_run(runs, "cheetah_sac_state", 0)[0], 2**14)
+    monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**12)  # above the record's json files, below dbc.pt
+    assert export_records(runs).partial == [str(KEY)]
+    record = tmp_path / "results" / "records" / PARTIAL_DIR / KEY
+    cfg_hash = read_json(record / "partial.json")["config_hash"]
+    shutil.rmtree(runs)
+    assert seed_from_partial(run.path, runs, cfg_hash) == (record, 50)
+    assert (run.path / "checkpoints" / "dbc.pt").read_bytes() == bytes(range(256)) * 64, "joined in order"
+
+    shutil.rmtree(runs)
+    (record / "checkpoints" / "dbc.pt.part-002").write_bytes(b"x" * 2**12)
+    with pytest.raises(RuntimeError, match="the parts of checkpoints/dbc.pt do not join to the file it recorded"):
+        seed_from_partial(run.path, runs, cfg_hash)
+    assert not (run.path / "checkpoints" / "dbc.pt").exists(), "no checkpoint from a damaged record"
