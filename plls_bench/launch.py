@@ -12,6 +12,7 @@ trial gets the time left as its ``time_limit_min`` when it starts, and none star
 """
 from __future__ import annotations
 
+import heapq
 import itertools
 import signal
 import subprocess
@@ -20,7 +21,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Hashable, Sequence
 
-from plls_bench.plan import PresetPlan
+from plls_bench.plan import PresetPlan, Trial
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_STOPPED, Run
 from plls_bench.signals import Terminated
@@ -64,8 +65,7 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
     trial's own limit (0: none)."""
     deadline = time.monotonic() + 60.0 * stop_after_min if stop_after_min > 0 else None
     failed: list[str] = []
-    for _, stage in itertools.groupby(plans, key=lambda p: runner_spec(p.runner).order):
-        stage_plans = list(stage)
+    for stage_plans in stages(plans):
         for plan in stage_plans:
             if not plan.pending:
                 print(f"[reproduce] {plan.label}: all {len(plan.trials)} trial(s) already done", flush=True)
@@ -81,13 +81,41 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
     return failed
 
 
+def stages(plans: list[PresetPlan]) -> list[list[PresetPlan]]:
+    """``plans`` (in plan order) grouped into the stages that run one after another: the runners'
+    :attr:`plls_bench.runner_specs.RunnerSpec.order`."""
+    return [list(stage) for _, stage in itertools.groupby(plans, key=lambda p: runner_spec(p.runner).order)]
+
+
+def queue_order(plans: list[PresetPlan]) -> list[tuple[int, Trial]]:
+    """One stage's pending trials as ``(plan index, trial)`` in the order the queue starts them:
+    trials that resume from a checkpoint first, least left first (they end, and can be recorded,
+    soonest), then the fresh ones in plan order."""
+    pending = [(i, t) for i, p in enumerate(plans) for t in p.pending]
+    return sorted(pending, key=lambda item: item[1].remaining)  # stable: ties keep plan order
+
+
+def estimated_wall_seconds(plans: list[PresetPlan], jobs: int) -> float:
+    """Wall-clock seconds of the queue over ``plans``: each stage's trials started in
+    :func:`queue_order` on the first of ``jobs`` slots to free, stages one after another, each
+    trial taking its estimated seconds (``PresetPlan.trial_seconds``; unknown ones count 0). Not
+    total / jobs: 3 trials on 2 slots leave the last to run alone, so the longest trial, not the
+    average, sets the wall time of a short queue."""
+    wall = 0.0
+    for stage_plans in stages(plans):
+        slots = [0.0] * max(jobs, 1)  # the time each slot frees up, a heap
+        for i, trial in queue_order(stage_plans):
+            start = heapq.heappop(slots)
+            heapq.heappush(slots, start + stage_plans[i].trial_seconds.get(trial.seed, 0.0))
+        wall += max(slots)
+    return wall
+
+
 def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int,
                 time_limit_min: float, deadline: float | None) -> list[str]:
-    """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time: trials that resume
-    from a checkpoint first, least left first (they end, and can be recorded, soonest), then the
-    fresh ones in plan order."""
-    pending = [(i, t) for i, p in enumerate(plans) for t in p.pending]
-    pending.sort(key=lambda item: item[1].remaining)  # stable: ties keep plan order
+    """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time, in
+    :func:`queue_order`."""
+    pending = queue_order(plans)
 
     def launcher(i: int, seed: int) -> Launch:
         def argv() -> list[str] | None:

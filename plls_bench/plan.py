@@ -57,6 +57,7 @@ class PresetPlan:
     trials: list[Trial]
     env_steps_per_trial: int               # policy-learning env steps (0 for non-RL presets)
     seconds: float | None = None           # estimated compute of the pending trials; None: unknown
+    trial_seconds: dict[int, float] = field(default_factory=dict)  # seed -> its share of ``seconds``
     missing_rates: list[str] = field(default_factory=list)
     overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
     count_records: bool = True             # a recorded trial is done (reproduce --rerun-recorded: not)
@@ -147,7 +148,8 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
     plans.sort(key=lambda p: (runner_spec(p.runner).order, p.experiment))  # artifacts before their consumers
     costed: set[str] = set()
     for plan in plans:
-        plan.seconds, plan.missing_rates = _estimate(plan, rates, costed)
+        plan.trial_seconds, plan.missing_rates = _estimate(plan, rates, costed)
+        plan.seconds = None if plan.missing_rates else sum(plan.trial_seconds.values())
     return plans
 
 
@@ -190,16 +192,19 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
 
 
 # --------------------------------------------------------------------------- cost estimates
-def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tuple[float | None, list[str]]:
-    """Seconds of compute for the plan's pending trials (shared artifacts counted once)."""
-    total, missing = 0.0, []
+def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tuple[dict[int, float], list[str]]:
+    """Seconds of compute of each pending trial by seed (a shared artifact counted once, in the
+    first trial that needs it), and the rate keys with no measured rate."""
+    per_trial, missing = {}, []
     for trial in plan.pending:
+        seconds = 0.0
         for key, amount in _workload(trial.cfg, costed, trial.remaining):
             if key not in rates:
                 missing.append(key)
             else:
-                total += amount / rates[key]
-    return (None if missing else total), sorted(set(missing))
+                seconds += amount / rates[key]
+        per_trial[trial.seed] = seconds
+    return per_trial, sorted(set(missing))
 
 
 def rate_keys(cfg: Config) -> dict[str, str]:

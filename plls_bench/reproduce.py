@@ -22,7 +22,7 @@ from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
-from plls_bench.launch import launcher_overrides, run_plans
+from plls_bench.launch import estimated_wall_seconds, launcher_overrides, run_plans
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
@@ -57,7 +57,8 @@ def format_plan(plans: list[PresetPlan], jobs: int) -> str:
     rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "
                 f"{recorded} recorded in committed records, {rerun}")
     rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
-                f"about {total / 3600 / max(jobs, 1):.1f} h wall with {jobs} parallel job(s)")
+                f"about {estimated_wall_seconds(plans, jobs) / 3600:.1f} h wall with {jobs} parallel job(s), "
+                f"trials started in the launch queue's order")
     if unknown:
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")

@@ -119,3 +119,20 @@ def test_stop_after_min_is_refused_for_slurm(tmp_path: Path) -> None:
                            "60", "--dry-run", "--runs", str(tmp_path)], cwd=REPO_ROOT, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 2 and "--stop-after-min: SLURM starts jobs" in done.stderr
+
+
+def test_the_wall_estimate_follows_the_queue_not_the_average(tmp_path: Path) -> None:
+    """Two slots, trials of 2 s and 3 s left (resuming) and a fresh one of 10 s, as state SAC's
+    three seeds stood: the queue starts the short ones first, so the 10 s trial starts at 2 s and the
+    queue ends at 12 s, not at (2 + 3 + 10) / 2. A later stage starts when the earlier one ends."""
+    def trial(seed: int, at: int) -> Trial:
+        return Trial(seed, tmp_path / f"seed={seed}", done=False, cfg=None, resumes_at=at, iterations=10,
+                     resumes_from="run dir" if at else "")
+
+    sac = PresetPlan("sac", "cheetah", "dbc", [trial(0, 8), trial(1, 7), trial(2, 0)], 100,
+                     trial_seconds={0: 2.0, 1: 3.0, 2: 10.0})
+    assert launch.estimated_wall_seconds([sac], jobs=2) == pytest.approx(12.0)
+    assert launch.estimated_wall_seconds([sac], jobs=1) == pytest.approx(15.0)
+    assert launch.estimated_wall_seconds([sac], jobs=3) == pytest.approx(10.0)
+    data = PresetPlan("data", "cheetah", "collect", [trial(0, 0)], 0, trial_seconds={0: 4.0})
+    assert launch.estimated_wall_seconds([data, sac], jobs=2) == pytest.approx(16.0)
