@@ -1,14 +1,15 @@
-"""Launching a plan's pending trials as Hydra multiruns: on this machine one per trial, from a
-queue that keeps ``jobs`` trials running (``--launcher local``: 1, ``joblib``: ``--jobs``); on
-SLURM one per preset, whose jobs submitit runs side by side.
+"""Launching a plan's pending trials as Hydra multiruns: on this machine one per trial, from a queue
+that keeps ``jobs`` trials running (``--launcher local``: 1, ``joblib``: ``--jobs``); on SLURM one
+per preset, whose jobs submitit runs side by side.
 
 One multirun per preset would leave cores idle on this machine whenever a preset's pending trials
 do not divide by the job count (3 trials on 2 cores: the third runs alone), and so would a sweep
 whose variants each have one trial left. The queue starts the next pending trial of any preset of
-the same stage as soon as a trial ends, trials that resume from a checkpoint first. Stages are the
+the same stage as soon as a trial ends, the shortest first (:func:`queue_order`). Stages are the
 runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built before
-the presets that read them. A queue may have a deadline (``reproduce --stop-after-min``): each
-trial gets the time left as its ``time_limit_min`` when it starts, and none starts after it.
+the presets that read them, and the learners (PPO, DBC) share the last stage. A queue may have a
+deadline (``reproduce --stop-after-min``): each trial gets the time left as its ``time_limit_min``
+when it starts, and none starts after it.
 """
 from __future__ import annotations
 
@@ -89,10 +90,15 @@ def stages(plans: list[PresetPlan]) -> list[list[PresetPlan]]:
 
 def queue_order(plans: list[PresetPlan]) -> list[tuple[int, Trial]]:
     """One stage's pending trials as ``(plan index, trial)`` in the order the queue starts them:
-    trials that resume from a checkpoint first, least left first (they end, and can be recorded,
-    soonest), then the fresh ones in plan order."""
+    shortest estimated time left first, so trials end, and can be recorded, as soon as they can;
+    without an estimate for every trial (a rate never measured), least left of its own training
+    first, which puts trials that resume from a checkpoint before the fresh ones. Ties keep plan
+    order. Time, not the fraction left, orders a stage of several presets: 20% of a 3 CPU-hour state
+    SAC trial is over before 70% of a 10 CPU-hour CNN PPO trial."""
     pending = [(i, t) for i, p in enumerate(plans) for t in p.pending]
-    return sorted(pending, key=lambda item: item[1].remaining)  # stable: ties keep plan order
+    if all(t.seed in plans[i].trial_seconds for i, t in pending):
+        return sorted(pending, key=lambda item: plans[item[0]].trial_seconds[item[1].seed])
+    return sorted(pending, key=lambda item: item[1].remaining)
 
 
 def estimated_wall_seconds(plans: list[PresetPlan], jobs: int) -> float:

@@ -38,7 +38,9 @@ class RunnerSpec:
 
     name: str
     load: Callable[[], RunFn]                  # imports the runner's module when called
-    order: int                                 # plan order: artifacts before the runners that read them
+    # Plan stage: artifacts before the runners that read them. Runners that read nothing of each
+    # other share a stage, so one launch queue keeps every core busy with all their trials.
+    order: int
     # How ``bench/throughput.py`` times its rates for the dry run: the name of one of its
     # measurements (MEASURES), which gives the rate keys of its kinds (``plan.rate_keys``).
     measure: str
@@ -136,7 +138,7 @@ SPECS: tuple[RunnerSpec, ...] = (
                iteration_keys=("algo.ppo.n_envs", "algo.ppo.n_steps"),
                load_policy_files=_ppo_policy_files, load_resume_files=_ppo_checkpoint, time_limited=True),
     # one DBC iteration: one agent step (action repeat frames) and its update
-    RunnerSpec("dbc", _dbc, order=4, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
+    RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
                load_resume_files=_dbc_checkpoint, time_limited=True),  # pixel DBC's is over MAX_PARTIAL_BYTES
 )

@@ -136,3 +136,20 @@ def test_the_wall_estimate_follows_the_queue_not_the_average(tmp_path: Path) -> 
     assert launch.estimated_wall_seconds([sac], jobs=3) == pytest.approx(10.0)
     data = PresetPlan("data", "cheetah", "collect", [trial(0, 0)], 0, trial_seconds={0: 4.0})
     assert launch.estimated_wall_seconds([data, sac], jobs=2) == pytest.approx(16.0)
+
+
+def test_with_estimates_the_queue_takes_the_shortest_time_left_first(tmp_path: Path) -> None:
+    """A stage of two presets: state SAC's seeds (0.7, 1.0 and 3.3 h left; seed 2 fresh) and three
+    CNN PPO trials each 70% from their end but 7 h from it. The fraction left would start the PPO
+    trials before SAC's fresh seed 2; the estimated time left starts seed 2 first."""
+    def trial(seed: int, at: int, iterations: int) -> Trial:
+        return Trial(seed, tmp_path / f"seed={seed}", done=False, cfg=None, resumes_at=at, iterations=iterations,
+                     resumes_from="partial record" if at else "")
+
+    sac = PresetPlan("sac", "cheetah", "dbc", [trial(0, 80, 100), trial(1, 70, 100), trial(2, 0, 100)], 100,
+                     trial_seconds={0: 0.7, 1: 1.0, 2: 3.3})
+    ppo = PresetPlan("va", "carracing", "ppo", [trial(s, 19, 64) for s in range(3)], 1024,
+                     trial_seconds={0: 7.0, 1: 7.0, 2: 7.0})
+    assert [(i, t.seed) for i, t in launch.queue_order([ppo, sac])] == [(1, 0), (1, 1), (1, 2), (0, 0), (0, 1), (0, 2)]
+    ppo.trial_seconds = {}  # no rate for one preset: the fraction of its own training left decides
+    assert [(i, t.seed) for i, t in launch.queue_order([ppo, sac])] == [(1, 0), (1, 1), (0, 0), (0, 1), (0, 2), (1, 2)]
