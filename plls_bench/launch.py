@@ -21,6 +21,7 @@ import sys
 import time
 from collections import deque
 from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass
 
 from plls_bench.plan import PresetPlan, Trial
 from plls_bench.runner_specs import runner_spec
@@ -101,20 +102,52 @@ def queue_order(plans: list[PresetPlan]) -> list[tuple[int, Trial]]:
     return sorted(pending, key=lambda item: item[1].remaining)
 
 
-def estimated_wall_seconds(plans: list[PresetPlan], jobs: int) -> float:
-    """Wall-clock seconds of the queue over ``plans``: each stage's trials started in
-    :func:`queue_order` on the first of ``jobs`` slots to free, stages one after another, each
-    trial taking its estimated seconds (``PresetPlan.trial_seconds``; unknown ones count 0). Not
-    total / jobs: 3 trials on 2 slots leave the last to run alone, so the longest trial, not the
-    average, sets the wall time of a short queue."""
-    wall = 0.0
+@dataclass(frozen=True)
+class Slot:
+    """Where the queue puts one pending trial, by the estimates: seconds from the launch."""
+    label: str       # its preset (and variant)
+    trial: Trial
+    start: float
+    end: float
+
+
+def simulate_queue(plans: list[PresetPlan], jobs: int) -> list[Slot]:
+    """The queue over ``plans`` as estimated: each stage's trials started in :func:`queue_order` on
+    the first of ``jobs`` slots to free, stages one after another, each trial taking its estimated
+    seconds (``PresetPlan.trial_seconds``; unknown ones count 0)."""
+    slots, stage_start = [], 0.0
     for stage_plans in stages(plans):
-        slots = [0.0] * max(jobs, 1)  # the time each slot frees up, a heap
+        free = [stage_start] * max(jobs, 1)  # the time each job frees up, a heap
         for i, trial in queue_order(stage_plans):
-            start = heapq.heappop(slots)
-            heapq.heappush(slots, start + stage_plans[i].trial_seconds.get(trial.seed, 0.0))
-        wall += max(slots)
-    return wall
+            start = heapq.heappop(free)
+            end = start + stage_plans[i].trial_seconds.get(trial.seed, 0.0)
+            heapq.heappush(free, end)
+            slots.append(Slot(stage_plans[i].label, trial, start, end))
+        stage_start = max(free)
+    return slots
+
+
+def estimated_wall_seconds(plans: list[PresetPlan], jobs: int) -> float:
+    """Wall-clock seconds of the queue (:func:`simulate_queue`). Not total / jobs: 3 trials on 2
+    jobs leave the last to run alone, so the longest chain, not the average, sets the wall time."""
+    return max((slot.end for slot in simulate_queue(plans, jobs)), default=0.0)
+
+
+def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float) -> list[str]:
+    """What ``--stop-after-min`` leaves by the estimates: how many trials end, are stopped at a
+    checkpoint (each with about how far its training gets) or never start."""
+    deadline = 60.0 * stop_after_min
+    slots = simulate_queue(plans, jobs)
+    late = [s for s in slots if s.start > deadline - 60.0 * MIN_START_MINUTES]
+    stopped = [s for s in slots if s not in late and s.end > deadline]
+    lines = [f"by --stop-after-min {stop_after_min:g}: {len(slots) - len(late) - len(stopped)} trial(s) end, "
+             f"{len(stopped)} stop at a checkpoint, {len(late)} do not start (estimates)"]
+    for s in stopped:
+        ran = (deadline - s.start) / (s.end - s.start)
+        reached = 1.0 - s.trial.remaining * (1.0 - ran)
+        lines.append(f"  stops: {s.label} seed={s.trial.seed} before about {100 * reached:.0f}% of its "
+                     f"training (its last checkpoint by then)")
+    return lines
 
 
 def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int,

@@ -22,7 +22,7 @@ from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
-from plls_bench.launch import estimated_wall_seconds, launcher_overrides, run_plans
+from plls_bench.launch import deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
@@ -37,8 +37,9 @@ RESULTS_OUT, SMOKE_OUT = "results", "results/smoke"
 EXIT_INTERRUPTED = 130
 
 
-def format_plan(plans: list[PresetPlan], jobs: int) -> str:
-    """The plan as a table, with estimated compute from measured throughput."""
+def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0) -> str:
+    """The plan as a table, with estimated compute from measured throughput, and what a
+    ``--stop-after-min`` deadline leaves of it."""
     width = max([28, *(len(p.label) for p in plans)])
     rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'recorded':>8s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
     total, unknown = 0.0, set()
@@ -59,6 +60,8 @@ def format_plan(plans: list[PresetPlan], jobs: int) -> str:
     rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
                 f"about {estimated_wall_seconds(plans, jobs) / 3600:.1f} h wall with {jobs} parallel job(s), "
                 f"trials started in the launch queue's order")
+    if stop_after_min > 0:
+        rows += deadline_outlook(plans, jobs, stop_after_min)
     if unknown:
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
@@ -227,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     jobs = args.jobs if args.launcher == "joblib" else 1
     print(f"[reproduce] profile={args.profile} launcher={args.launcher} runs={args.runs}")
-    print(format_plan(plans, jobs), flush=True)
+    print(format_plan(plans, jobs, args.stop_after_min), flush=True)
     if args.dry_run:
         return 0
     overrides = launcher_overrides(args.launcher, args.hydra)

@@ -153,3 +153,26 @@ def test_with_estimates_the_queue_takes_the_shortest_time_left_first(tmp_path: P
     assert [(i, t.seed) for i, t in launch.queue_order([ppo, sac])] == [(1, 0), (1, 1), (1, 2), (0, 0), (0, 1), (0, 2)]
     ppo.trial_seconds = {}  # no rate for one preset: the fraction of its own training left decides
     assert [(i, t.seed) for i, t in launch.queue_order([ppo, sac])] == [(1, 0), (1, 1), (0, 0), (0, 1), (0, 2), (1, 2)]
+
+
+def test_the_dry_run_says_what_a_deadline_leaves(tmp_path: Path) -> None:
+    """In units of MIN_START_MINUTES, 2 jobs and a deadline at 11: seeds 0 (2 left) and 1 (3 left)
+    end, seed 2 (fresh, 10, started at 2) stops 90% through, seed 3 (fresh, 20, started at 3) 40%
+    through. At 3.5, seed 3's turn comes less than one unit before the deadline: it never starts."""
+    def trial(seed: int, at: int) -> Trial:
+        return Trial(seed, tmp_path / f"seed={seed}", done=False, cfg=None, resumes_at=at, iterations=10,
+                     resumes_from="run dir" if at else "")
+
+    unit = 60.0 * launch.MIN_START_MINUTES  # seconds
+    sac = PresetPlan("sac", "cheetah", "dbc", [trial(0, 8), trial(1, 7), trial(2, 0), trial(3, 0)], 100,
+                     trial_seconds={0: 2 * unit, 1: 3 * unit, 2: 10 * unit, 3: 20 * unit})
+    slots = launch.simulate_queue([sac], jobs=2)
+    expected = [(0, 0, 2), (1, 0, 3), (2, 2, 12), (3, 3, 23)]  # (seed, start, end)
+    assert [(s.trial.seed, s.start / unit, s.end / unit) for s in slots] == expected
+    lines = launch.deadline_outlook([sac], jobs=2, stop_after_min=11 * launch.MIN_START_MINUTES)
+    assert lines[0].startswith("by --stop-after-min")
+    assert "2 trial(s) end, 2 stop at a checkpoint, 0 do not start" in lines[0]
+    assert "sac seed=2 before about 90% of its training" in lines[1]
+    assert "sac seed=3 before about 40% of its training" in lines[2]
+    lines = launch.deadline_outlook([sac], jobs=2, stop_after_min=3.5 * launch.MIN_START_MINUTES)
+    assert "2 trial(s) end, 1 stop at a checkpoint, 1 do not start" in lines[0] and len(lines) == 2
