@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-steps", type=int, default=0, help="cap the episode at this many agent steps")
     parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
                         help="filmstrip settings, e.g. interval=8 episode=2 (conf/filmstrip/<env>.yaml)")
-    args = parser.parse_args(argv)
+    args = parser.parse_intermixed_args(argv)  # KEY=VALUE before or after the options
     try:
         if not args.run_dir.is_dir():
             raise ConfigError(f"{args.run_dir}: no such run directory")

@@ -110,6 +110,8 @@ def test_cli_refuses_a_run_without_a_policy_or_checkpoint(tmp_path: Path) -> Non
         assert not (tmp_path / name / "filmstrip").exists()
     bad = film(str(tmp_path / "ppo"), "interval=0")
     assert bad.returncode == 2 and "filmstrip.interval" in bad.stderr
+    after = film(str(tmp_path / "ppo"), "--out", str(tmp_path / "strip"), "interval=0")  # settings after an option
+    assert after.returncode == 2 and "filmstrip.interval" in after.stderr, after.stderr
 
 
 def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
