@@ -136,6 +136,8 @@ def estimated_wall_seconds(plans: list[PresetPlan], jobs: int) -> float:
 def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float) -> list[str]:
     """What ``--stop-after-min`` leaves by the estimates: how many trials end, are stopped at a
     checkpoint (each with about how far its training gets) or never start."""
+    if any(p.missing_rates for p in plans):
+        return [f"by --stop-after-min {stop_after_min:g}: no outlook, some trials have no estimate"]
     deadline = 60.0 * stop_after_min
     slots = simulate_queue(plans, jobs)
     late = [s for s in slots if s.start > deadline - 60.0 * MIN_START_MINUTES]

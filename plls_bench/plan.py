@@ -194,17 +194,17 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
 # --------------------------------------------------------------------------- cost estimates
 def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tuple[dict[int, float], list[str]]:
     """Seconds of compute of each pending trial by seed (a shared artifact counted once, in the
-    first trial that needs it), and the rate keys with no measured rate."""
-    per_trial, missing = {}, []
+    first trial that needs it; a trial with a rate never measured has none), and the rate keys
+    with no measured rate."""
+    per_trial, missing = {}, set()
     for trial in plan.pending:
-        seconds = 0.0
-        for key, amount in _workload(trial.cfg, costed, trial.remaining):
-            if key not in rates:
-                missing.append(key)
-            else:
-                seconds += amount / rates[key]
-        per_trial[trial.seed] = seconds
-    return per_trial, sorted(set(missing))
+        work = _workload(trial.cfg, costed, trial.remaining)
+        unknown = {key for key, _ in work if key not in rates}
+        if unknown:
+            missing |= unknown
+        else:
+            per_trial[trial.seed] = sum(amount / rates[key] for key, amount in work)
+    return per_trial, sorted(missing)
 
 
 def rate_keys(cfg: Config) -> dict[str, str]:

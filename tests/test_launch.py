@@ -176,3 +176,5 @@ def test_the_dry_run_says_what_a_deadline_leaves(tmp_path: Path) -> None:
     assert "sac seed=3 before about 40% of its training" in lines[2]
     lines = launch.deadline_outlook([sac], jobs=2, stop_after_min=3.5 * launch.MIN_START_MINUTES)
     assert "2 trial(s) end, 1 stop at a checkpoint, 1 do not start" in lines[0] and len(lines) == 2
+    sac.missing_rates = ["train/sac"]  # a rate never measured: no outlook rather than a wrong one
+    assert launch.deadline_outlook([sac], jobs=2, stop_after_min=11)[0].endswith("some trials have no estimate")
