@@ -29,17 +29,19 @@ def _git(repo: Path, *args: str) -> str | None:
     return out.stdout.strip()
 
 
-def git_state(repo: Path = REPO_ROOT, paths: tuple[str, ...] = ()) -> dict[str, Any]:
+def git_state(repo: Path = REPO_ROOT, paths: tuple[str, ...] = (), ignore: tuple[str, ...] = ()) -> dict[str, Any]:
     """Commit sha and whether the working tree has uncommitted changes (None outside git, where
     ``$PLLS_BENCH_SOURCE_SHA``, if set, names the commit the code was copied from). With ``paths``:
     the last commit that changed them, and whether they have uncommitted changes, so a file built
-    by that code names the same commit in every checkout of a later commit that left it alone."""
+    by that code names the same commit in every checkout of a later commit that left it alone.
+    ``ignore``: folders whose changes do not make the tree dirty."""
     sha = (_git(repo, "log", "-1", "--format=%H", "--", *paths) if paths else _git(repo, "rev-parse", "HEAD")) or None
     if sha is None and os.environ.get(SOURCE_SHA_VAR):
         # A copy of the code without .git (a container, a cluster node's rsync): the launcher
         # names the commit it copied; the dirty flag stays unknown, and the record says whence.
         return {"git_sha": os.environ[SOURCE_SHA_VAR], "git_dirty": None, "git_sha_from": SOURCE_SHA_VAR}
-    status = _git(repo, "status", "--porcelain", "--untracked-files=no", "--", *paths)
+    spec = [*(paths or ((".",) if ignore else ())), *(f":(exclude){folder}" for folder in ignore)]
+    status = _git(repo, "status", "--porcelain", "--untracked-files=no", "--", *spec)
     return {"git_sha": sha, "git_dirty": None if status is None else bool(status)}
 
 
@@ -73,7 +75,9 @@ def device_used(setting: str) -> dict[str, str]:
 def collect_provenance(device: str = "auto", precision: str = "fp32") -> dict[str, Any]:
     """This start's record; ``device`` and ``precision`` are the run's settings."""
     return {
-        **git_state(),
+        # results/ is evidence, not code: reproduce exports records into the checkout it runs from,
+        # and that must not mark the next start of a campaign there as run from changed code
+        **git_state(ignore=("results",)),
         "packages": package_versions(),
         "python": sys.version.split()[0],
         "command": [Path(sys.executable).name, *sys.argv],

@@ -169,5 +169,7 @@ def test_git_state_of_paths_names_the_last_commit_that_changed_them(tmp_path: Pa
     assert git_state(tmp_path)["git_sha"] == head
     (tmp_path / "records" / "f.txt").write_text("2")
     assert git_state(tmp_path, paths=("code",))["git_dirty"] is False
+    assert git_state(tmp_path)["git_dirty"] is True and git_state(tmp_path, ignore=("records",))["git_dirty"] is False
     (tmp_path / "code" / "f.txt").write_text("2")
     assert git_state(tmp_path, paths=("code",))["git_dirty"] is True
+    assert git_state(tmp_path, ignore=("records",)) == {"git_sha": head, "git_dirty": True}
