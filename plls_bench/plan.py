@@ -56,8 +56,7 @@ class PresetPlan:
     runner: str
     trials: list[Trial]
     env_steps_per_trial: int               # policy-learning env steps (0 for non-RL presets)
-    seconds: float | None = None           # estimated compute of the pending trials; None: unknown
-    trial_seconds: dict[int, float] = field(default_factory=dict)  # seed -> its share of ``seconds``
+    trial_seconds: dict[int, float] = field(default_factory=dict)  # seed -> estimated compute of a pending trial
     missing_rates: list[str] = field(default_factory=list)
     overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
     count_records: bool = True             # a recorded trial is done (reproduce --rerun-recorded: not)
@@ -65,6 +64,11 @@ class PresetPlan:
     @property
     def label(self) -> str:
         return " ".join((self.experiment, *variant_overrides(self.overrides)))
+
+    @property
+    def seconds(self) -> float | None:
+        """Estimated compute of the pending trials; None: a rate was never measured."""
+        return None if self.missing_rates else sum(self.trial_seconds.values())
 
     @property
     def pending(self) -> list[Trial]:
@@ -149,7 +153,6 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
     costed: set[str] = set()
     for plan in plans:
         plan.trial_seconds, plan.missing_rates = _estimate(plan, rates, costed)
-        plan.seconds = None if plan.missing_rates else sum(plan.trial_seconds.values())
     return plans
 
 
