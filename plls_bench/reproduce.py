@@ -189,7 +189,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
                              f"--profile smoke, git-ignored; else {RESULTS_OUT}, the committed results)")
-    parser.add_argument("--no-report", action="store_true", help="run the presets only, not the collector")
+    parser.add_argument("--no-report", action="store_true", help="run the presets (and, but for --profile smoke, export their records into "
+                             "the records folder beside --runs), not the results collector")
     parser.add_argument("--dry-run", action="store_true", help="print the plan and its estimated cost, run nothing")
     parser.add_argument("--rerun-recorded", action="store_true",
                         help="run trials that a committed record holds done again (default: counted as done)")

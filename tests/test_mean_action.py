@@ -46,3 +46,13 @@ def test_a_run_dir_without_a_config_is_refused(tmp_path: Path, capsys: pytest.Ca
         main([str(tmp_path / "nowhere")])
     assert exit_info.value.code == 2 and "runs: no config.json in" in capsys.readouterr().err
     assert not (tmp_path / "results").exists()
+
+
+def test_run_dirs_may_follow_the_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Both run dirs are read as runs (and refused for lacking a config), not the second as an
+    unrecognised argument."""
+    first, second = tmp_path / "first", tmp_path / "second"
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(first), "--steps", "5", str(second)])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and f"runs: no config.json in {first}, {second}" in err

@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", nargs="+", type=Path, help="run dirs or records of PPO trials")
     parser.add_argument("--steps", type=int, default=400, help="steps of one test episode per run (default 400)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output prefix (default {DEFAULT_OUT})")
-    args = parser.parse_args(argv)
+    args = parser.parse_intermixed_args(argv)  # run dirs before or after the options
     missing = [str(p) for p in args.runs if not (p / "config.json").is_file()]
     if missing or args.steps < 1:
         parser.error(f"runs: no config.json in {', '.join(missing)}" if missing else "--steps must be >= 1")
