@@ -9,7 +9,7 @@ the same stage as soon as a trial ends, the shortest first (:func:`queue_order`)
 runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built before
 the presets that read them, and the learners (PPO, DBC) share the last stage. A queue may have a
 deadline (``reproduce --stop-after-min``): each trial gets the time left as its ``time_limit_min``
-when it starts, and none starts after it.
+when it starts, and none starts that could not reach a checkpoint by then (:func:`start_minutes`).
 """
 from __future__ import annotations
 
@@ -34,8 +34,16 @@ POLL_SECONDS = 0.5
 # (reproduce alone was signalled) gets SIGTERM, which stops it at a resumable point (status stopped).
 INTERRUPT_GRACE_SECONDS = 30.0
 # No trial starts with less time than this left to the deadline: a trial runs at least to its
-# first checkpoint whatever its limit, so it would overrun the deadline for little work.
+# first checkpoint whatever its limit, so it would overrun the deadline for little work. A learner
+# with an estimate needs its first checkpoint's estimated time too (start_minutes).
 MIN_START_MINUTES = 2.0
+
+
+def start_minutes(plan: PresetPlan, trial: Trial) -> float:
+    """The least time left to the deadline that ``trial`` may start with: MIN_START_MINUTES, or
+    longer for a learner whose first checkpoint is estimated further off (one CNN PPO iteration on
+    2 cores is about 10 minutes; started with 4 left, it overran the deadline by 6)."""
+    return max(MIN_START_MINUTES, plan.first_checkpoint_seconds.get(trial.seed, 0.0) / 60.0)
 
 
 def launcher_overrides(launcher: str, extra: list[str]) -> list[str]:
@@ -109,6 +117,7 @@ class Slot:
     trial: Trial
     start: float
     end: float
+    least_left: float  # seconds it needs left to the deadline to start (start_minutes)
 
 
 def simulate_queue(plans: list[PresetPlan], jobs: int) -> list[Slot]:
@@ -122,7 +131,7 @@ def simulate_queue(plans: list[PresetPlan], jobs: int) -> list[Slot]:
             start = heapq.heappop(free)
             end = start + stage_plans[i].trial_seconds.get(trial.seed, 0.0)
             heapq.heappush(free, end)
-            slots.append(Slot(stage_plans[i].label, trial, start, end))
+            slots.append(Slot(stage_plans[i].label, trial, start, end, 60.0 * start_minutes(stage_plans[i], trial)))
         stage_start = max(free)
     return slots
 
@@ -140,7 +149,7 @@ def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float) 
         return [f"by --stop-after-min {stop_after_min:g}: no outlook, some trials have no estimate"]
     deadline = 60.0 * stop_after_min
     slots = simulate_queue(plans, jobs)
-    late = [s for s in slots if s.start > deadline - 60.0 * MIN_START_MINUTES]
+    late = [s for s in slots if s.start > deadline - s.least_left]
     stopped = [s for s in slots if s not in late and s.end > deadline]
     lines = [f"by --stop-after-min {stop_after_min:g}: {len(slots) - len(late) - len(stopped)} trial(s) end, "
              f"{len(stopped)} stop at a checkpoint, {len(late)} do not start (estimates)"]
@@ -158,27 +167,28 @@ def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides:
     :func:`queue_order`."""
     pending = queue_order(plans)
 
-    def launcher(i: int, seed: int) -> Launch:
+    def launcher(i: int, trial: Trial) -> Launch:
         def argv() -> list[str] | None:
-            limit = _limit_at_start(time_limit_min, deadline)
-            return None if limit is None else multirun_command(plans[i], profile, runs_dir, overrides, [seed], limit)
+            limit = _limit_at_start(time_limit_min, deadline, start_minutes(plans[i], trial))
+            return None if limit is None else multirun_command(plans[i], profile, runs_dir, overrides, [trial.seed], limit)
         return argv
 
     start = time.perf_counter()
-    codes = run_queue([((i, t.seed), launcher(i, t.seed)) for i, t in pending], jobs)
+    codes = run_queue([((i, t.seed), launcher(i, t)) for i, t in pending], jobs)
     failed: list[str] = []
     for i, plan in enumerate(plans):
         failed += _report(plan, [codes[(i, t.seed)] for t in plan.pending], time.perf_counter() - start)
     return failed
 
 
-def _limit_at_start(time_limit_min: float, deadline: float | None) -> float | None:
+def _limit_at_start(time_limit_min: float, deadline: float | None,
+                    least_minutes: float = MIN_START_MINUTES) -> float | None:
     """A trial's ``time_limit_min`` if it starts now: its own, or the time left to the deadline if
-    shorter; None if too little is left to reach a checkpoint."""
+    shorter; None if less than ``least_minutes`` is left (too little to reach a checkpoint)."""
     if deadline is None:
         return time_limit_min
     left = (deadline - time.monotonic()) / 60.0
-    if left < MIN_START_MINUTES:
+    if left < least_minutes:
         return None
     return min(time_limit_min, left) if time_limit_min > 0 else left
 
@@ -193,7 +203,8 @@ def _report(plan: PresetPlan, codes: list[int | None], seconds: float) -> list[s
     note = (f", seed(s) {', '.join(map(str, stopped))} stopped early (time limit or SIGTERM; run again "
             f"to resume)" if stopped else "")
     if ran < len(codes):
-        note += f", {len(codes) - ran} not started (--stop-after-min reached; run again to start them)"
+        note += (f", {len(codes) - ran} not started (--stop-after-min reached, or too close to reach a "
+                 f"checkpoint; run again to start them)")
     print(f"[reproduce] {plan.label}: {status}; ran {ran} trial(s), "
           f"{len(plan.trials) - len(plan.pending)} already done, {seconds:.0f}s{note}", flush=True)
     return [plan.label] if bad else []

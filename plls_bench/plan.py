@@ -42,6 +42,7 @@ class Trial:
     resumes_at: int = 0                           # iteration of the checkpoint it resumes from
     resumes_from: str = ""                        # "run dir" or "partial record" ("": starts afresh)
     iterations: int = 0                           # iterations of the whole run (learners; else 0)
+    checkpoints: int = 0                          # checkpoints still to come (time-limited learners; else 0)
 
     @property
     def remaining(self) -> float:
@@ -57,6 +58,9 @@ class PresetPlan:
     trials: list[Trial]
     env_steps_per_trial: int               # policy-learning env steps (0 for non-RL presets)
     trial_seconds: dict[int, float] = field(default_factory=dict)  # seed -> estimated compute of a pending trial
+    # seed -> estimated compute until a pending time-limited trial's first checkpoint (its artifacts
+    # and one checkpoint interval of training): the least time left it may start with (launch.py)
+    first_checkpoint_seconds: dict[int, float] = field(default_factory=dict)
     missing_rates: list[str] = field(default_factory=list)
     overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
     count_records: bool = True             # a recorded trial is done (reproduce --rerun-recorded: not)
@@ -152,7 +156,7 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
     plans.sort(key=lambda p: (runner_spec(p.runner).order, p.experiment))  # artifacts before their consumers
     costed: set[str] = set()
     for plan in plans:
-        plan.trial_seconds, plan.missing_rates = _estimate(plan, rates, costed)
+        plan.trial_seconds, plan.first_checkpoint_seconds, plan.missing_rates = _estimate(plan, rates, costed)
     return plans
 
 
@@ -172,7 +176,7 @@ def _plan_preset(experiment: str, profile: str, runs_dir: str, count_records: bo
         done = Run(path).is_done(cfg_hash)
         at, source = (0, "") if done else _resume_point(cfg, path, partial_record(records, key, cfg_hash), cfg_hash)
         trials.append(Trial(seed, path, done, cfg, is_recorded(records, key, cfg_hash), at, source,
-                            Schedule.of(cfg).iterations if source else 0))
+                            Schedule.of(cfg).iterations if source else 0, _checkpoints_left(cfg, at)))
     rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
                       first.budget.train_env_steps if rl else 0, overrides=overrides, count_records=count_records)
@@ -194,20 +198,42 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
     return 0, ""
 
 
+def _checkpoints_left(cfg: Config, at: int) -> int:
+    """Checkpoints a time-limited learner resuming at iteration ``at`` (0: fresh) still makes after
+    it starts: every iteration, or every evaluation (``RunnerSpec.checkpoints_at``); 0 for the
+    runners that run to their end. A fresh run's checkpoint at iteration 0 comes before any
+    training, so it is not one of them."""
+    spec = runner_spec(cfg.runner)
+    if not spec.time_limited:
+        return 0
+    schedule = Schedule.of(cfg)
+    if spec.checkpoints_at == "evaluation":
+        return schedule.evaluations - schedule.evaluations_through(at)
+    return schedule.iterations - at
+
+
 # --------------------------------------------------------------------------- cost estimates
-def _estimate(plan: PresetPlan, rates: dict[str, float], costed: set[str]) -> tuple[dict[int, float], list[str]]:
+def _estimate(plan: PresetPlan, rates: dict[str, float],
+              costed: set[str]) -> tuple[dict[int, float], dict[int, float], list[str]]:
     """Seconds of compute of each pending trial by seed (a shared artifact counted once, in the
-    first trial that needs it; a trial with a rate never measured has none), and the rate keys
-    with no measured rate."""
-    per_trial, missing = {}, set()
+    first trial that needs it; a trial with a rate never measured has none), the seconds until its
+    first checkpoint (time-limited learners: the artifacts it builds first, then its training and
+    evaluations spread evenly over its checkpoints), and the rate keys with no measured rate."""
+    per_trial, first_checkpoint, missing = {}, {}, set()
     for trial in plan.pending:
         work = _workload(trial.cfg, costed, trial.remaining)
         unknown = {key for key, _ in work if key not in rates}
         if unknown:
             missing |= unknown
-        else:
-            per_trial[trial.seed] = sum(amount / rates[key] for key, amount in work)
-    return per_trial, sorted(missing)
+            continue
+        seconds = {key: amount / rates[key] for key, amount in work}
+        per_trial[trial.seed] = sum(seconds.values())
+        if trial.checkpoints > 0:
+            keys = rate_keys(trial.cfg)
+            learning = {keys["train"], keys["eval"]}
+            upfront = sum(v for key, v in seconds.items() if key not in learning)
+            first_checkpoint[trial.seed] = upfront + sum(seconds[key] for key in learning) / trial.checkpoints
+    return per_trial, first_checkpoint, sorted(missing)
 
 
 def rate_keys(cfg: Config) -> dict[str, str]:

@@ -61,6 +61,9 @@ class RunnerSpec:
     # Trains in the skeleton of ``train/loop.py``, so ``time_limit_min`` stops it at a checkpoint;
     # the other runners are short and run to their end.
     time_limited: bool = False
+    # When a time-limited runner checkpoints: every "iteration" or at each "evaluation"; the launch
+    # starts none that cannot reach its first checkpoint before the deadline (launch.start_minutes).
+    checkpoints_at: str = "iteration"
 
     @property
     def films(self) -> bool:
@@ -140,7 +143,8 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               load_resume_files=_dbc_checkpoint, time_limited=True),  # pixel DBC's is over MAX_PARTIAL_BYTES
+               load_resume_files=_dbc_checkpoint, time_limited=True,  # pixel DBC's is over MAX_PARTIAL_BYTES
+               checkpoints_at="evaluation"),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

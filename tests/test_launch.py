@@ -178,3 +178,28 @@ def test_the_dry_run_says_what_a_deadline_leaves(tmp_path: Path) -> None:
     assert "2 trial(s) end, 1 stop at a checkpoint, 1 do not start" in lines[0] and len(lines) == 2
     sac.missing_rates = ["train/sac"]  # a rate never measured: no outlook rather than a wrong one
     assert launch.deadline_outlook([sac], jobs=2, stop_after_min=11)[0].endswith("some trials have no estimate")
+
+
+def test_a_learner_starts_only_with_time_for_its_first_checkpoint(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """CNN PPO seed 2 was started with 4.4 minutes left and a first iteration of about 9.5: it
+    overran the deadline. With an estimate of its first checkpoint, the launch holds it back, and
+    the dry run says so; without one, MIN_START_MINUTES still applies."""
+    def trial(seed: int) -> Trial:
+        return Trial(seed, tmp_path / f"seed={seed}", done=False, cfg=None, resumes_at=19, iterations=64,
+                     resumes_from="partial record", checkpoints=45)
+
+    ppo = PresetPlan("va", "carracing", "ppo", [trial(0), trial(1), trial(2)], 1024,
+                     trial_seconds={s: 45 * 570.0 for s in range(3)},
+                     first_checkpoint_seconds={s: 570.0 for s in range(3)})
+    assert launch.start_minutes(ppo, ppo.trials[0]) == pytest.approx(9.5)
+    monkeypatch.setattr(launch.time, "monotonic", lambda: 1000.0)
+    assert launch._limit_at_start(0.0, 1000.0 + 60 * 4.4, launch.start_minutes(ppo, ppo.trials[0])) is None
+    assert launch._limit_at_start(0.0, 1000.0 + 60 * 10, launch.start_minutes(ppo, ppo.trials[0])) == pytest.approx(10)
+    # 2 jobs: seeds 0 and 1 run their 45 iterations from 0, seed 2 starts when they end, 4.4 minutes
+    # before the deadline
+    minutes = (45 * 570.0 + 4.4 * 60) / 60
+    assert "2 trial(s) end, 0 stop at a checkpoint, 1 do not start" in launch.deadline_outlook([ppo], 2, minutes)[0]
+    ppo.first_checkpoint_seconds = {}
+    assert launch.start_minutes(ppo, ppo.trials[0]) == launch.MIN_START_MINUTES
+    assert "2 trial(s) end, 1 stop at a checkpoint, 0 do not start" in launch.deadline_outlook([ppo], 2, minutes)[0]

@@ -49,3 +49,36 @@ def test_the_dry_run_costs_the_evaluations_of_the_schedule(runs_dir: Path) -> No
     assert budget.eval_max_steps == 0 or budget.eval_max_steps * cfg.env.action_repeat == episode
     per_trial = budget.train_env_steps + Schedule.of(cfg).evaluations * budget.eval_episodes * episode
     assert plan.seconds == pytest.approx(len(plan.trials) * per_trial)
+
+
+def test_the_dry_run_estimates_each_trials_first_checkpoint(runs_dir: Path) -> None:
+    """DBC checkpoints at each evaluation: a fresh quick trial's first checkpoint comes after one
+    evaluation interval of its training and evaluations (not after the checkpoint at iteration 0).
+    PPO checkpoints every iteration. Neither preset builds an artifact here (no V_s / V_a)."""
+    rates = {"train/cheetah_dbc": 1.0, "eval/cheetah_dbc": 1.0}
+    plan = plan_profile("quick", str(runs_dir), only=["cheetah_dbc"], rates=rates, count_records=False)[0]
+    trial = plan.trials[0]
+    schedule = Schedule.of(trial.cfg)
+    assert trial.checkpoints == schedule.evaluations - 1 == 10
+    assert plan.first_checkpoint_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
+    rates = {"train/mountaincar_ppo": 2.0, "eval/mountaincar_ppo": 3.0}
+    plan = plan_profile("quick", str(runs_dir), only=["mountaincar_ppo"], rates=rates, count_records=False)[0]
+    trial = plan.trials[0]
+    assert trial.checkpoints == Schedule.of(trial.cfg).iterations
+    assert plan.first_checkpoint_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
+
+
+def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir: Path) -> None:
+    """PL-LS's first trial collects the dataset and trains V_a before any PPO iteration: all of it
+    comes before its first checkpoint; the second trial reuses them."""
+    from plls_bench.plan import rate_keys
+
+    cfg = compose_preset("mountaincar_plls_ppo", runs_dir, "budget=quick")
+    rates = {key: 1.0 for key in rate_keys(cfg).values()}
+    plan = plan_profile("quick", str(runs_dir), only=["mountaincar_plls_ppo"], rates=rates, count_records=False)[0]
+    first, second = plan.trials[:2]
+    learning = plan.trial_seconds[second.seed]  # no artifacts left to build
+    upfront = plan.trial_seconds[first.seed] - learning
+    assert upfront > 0
+    assert plan.first_checkpoint_seconds[first.seed] == pytest.approx(upfront + learning / first.checkpoints)
+    assert plan.first_checkpoint_seconds[second.seed] == pytest.approx(learning / second.checkpoints)
