@@ -9,7 +9,8 @@ the same stage as soon as a trial ends, the shortest first (:func:`queue_order`)
 runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built before
 the presets that read them, and the learners (PPO, DBC) share the last stage. A queue may have a
 deadline (``reproduce --stop-after-min``): each trial gets the time left as its ``time_limit_min``
-when it starts, and none starts that could not reach a checkpoint by then (:func:`start_minutes`).
+when it starts, and none starts that could not reach a checkpoint, or its end, by then
+(:func:`start_minutes`).
 """
 from __future__ import annotations
 
@@ -34,16 +35,17 @@ POLL_SECONDS = 0.5
 # (reproduce alone was signalled) gets SIGTERM, which stops it at a resumable point (status stopped).
 INTERRUPT_GRACE_SECONDS = 30.0
 # No trial starts with less time than this left to the deadline: a trial runs at least to its
-# first checkpoint whatever its limit, so it would overrun the deadline for little work. A learner
-# with an estimate needs its first checkpoint's estimated time too (start_minutes).
+# first checkpoint whatever its limit, so it would overrun the deadline for little work. A trial
+# with an estimate needs the estimated time to its first stop too (start_minutes).
 MIN_START_MINUTES = 2.0
 
 
 def start_minutes(plan: PresetPlan, trial: Trial) -> float:
     """The least time left to the deadline that ``trial`` may start with: MIN_START_MINUTES, or
-    longer for a learner whose first checkpoint is estimated further off (one CNN PPO iteration on
-    2 cores is about 10 minutes; started with 4 left, it overran the deadline by 6)."""
-    return max(MIN_START_MINUTES, plan.first_checkpoint_seconds.get(trial.seed, 0.0) / 60.0)
+    longer if it is estimated to stop first further off (``PresetPlan.first_stop_seconds``): a
+    learner at its first checkpoint (one CNN PPO iteration on 2 cores is about 10 minutes; started
+    with 4 left, it overran the deadline by 6), any other runner at its end."""
+    return max(MIN_START_MINUTES, plan.first_stop_seconds.get(trial.seed, 0.0) / 60.0)
 
 
 def launcher_overrides(launcher: str, extra: list[str]) -> list[str]:

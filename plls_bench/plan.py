@@ -58,9 +58,10 @@ class PresetPlan:
     trials: list[Trial]
     env_steps_per_trial: int               # policy-learning env steps (0 for non-RL presets)
     trial_seconds: dict[int, float] = field(default_factory=dict)  # seed -> estimated compute of a pending trial
-    # seed -> estimated compute until a pending time-limited trial's first checkpoint (its artifacts
-    # and one checkpoint interval of training): the least time left it may start with (launch.py)
-    first_checkpoint_seconds: dict[int, float] = field(default_factory=dict)
+    # seed -> estimated compute until a pending trial can first stop: a time-limited learner's first
+    # checkpoint (its artifacts and one checkpoint interval of training), any other trial's end (it
+    # runs to its end): the least time left it may start with (launch.py)
+    first_stop_seconds: dict[int, float] = field(default_factory=dict)
     missing_rates: list[str] = field(default_factory=list)
     overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
     count_records: bool = True             # a recorded trial is done (reproduce --rerun-recorded: not)
@@ -156,7 +157,7 @@ def _costed(plans: list[PresetPlan], rates: dict[str, float] | None) -> list[Pre
     plans.sort(key=lambda p: (runner_spec(p.runner).order, p.experiment))  # artifacts before their consumers
     costed: set[str] = set()
     for plan in plans:
-        plan.trial_seconds, plan.first_checkpoint_seconds, plan.missing_rates = _estimate(plan, rates, costed)
+        plan.trial_seconds, plan.first_stop_seconds, plan.missing_rates = _estimate(plan, rates, costed)
     return plans
 
 
@@ -217,9 +218,10 @@ def _estimate(plan: PresetPlan, rates: dict[str, float],
               costed: set[str]) -> tuple[dict[int, float], dict[int, float], list[str]]:
     """Seconds of compute of each pending trial by seed (a shared artifact counted once, in the
     first trial that needs it; a trial with a rate never measured has none), the seconds until its
-    first checkpoint (time-limited learners: the artifacts it builds first, then its training and
-    evaluations spread evenly over its checkpoints), and the rate keys with no measured rate."""
-    per_trial, first_checkpoint, missing = {}, {}, set()
+    first stop (time-limited learners: the artifacts it builds first, then its training and
+    evaluations spread evenly over its checkpoints; other trials run to their end, so all of their
+    estimate), and the rate keys with no measured rate."""
+    per_trial, first_stop, missing = {}, {}, set()
     for trial in plan.pending:
         work = _workload(trial.cfg, costed, trial.remaining)
         unknown = {key for key, _ in work if key not in rates}
@@ -232,8 +234,10 @@ def _estimate(plan: PresetPlan, rates: dict[str, float],
             keys = rate_keys(trial.cfg)
             learning = {keys["train"], keys["eval"]}
             upfront = sum(v for key, v in seconds.items() if key not in learning)
-            first_checkpoint[trial.seed] = upfront + sum(seconds[key] for key in learning) / trial.checkpoints
-    return per_trial, first_checkpoint, sorted(missing)
+            first_stop[trial.seed] = upfront + sum(seconds[key] for key in learning) / trial.checkpoints
+        else:
+            first_stop[trial.seed] = per_trial[trial.seed]
+    return per_trial, first_stop, sorted(missing)
 
 
 def rate_keys(cfg: Config) -> dict[str, str]:

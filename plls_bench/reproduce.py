@@ -182,7 +182,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                              "stopped) and the next launch resumes it; for job time limits (default 0: none)")
     parser.add_argument("--stop-after-min", type=float, default=0.0, metavar="MIN",
                         help="the whole launch on this machine: no trial starts after MIN minutes (nor one "
-                             "whose first checkpoint is estimated to come later), and each "
+                             "estimated to reach its first checkpoint, or its end, later), and each "
                              "gets the time left as its time limit when it starts, so learners stop at a "
                              "checkpoint by then (status stopped; the next launch resumes them); for a "
                              "sitting of known length (default 0: none; not with --launcher slurm)")

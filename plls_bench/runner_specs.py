@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Literal, get_args
 
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
@@ -30,6 +30,7 @@ RunFn = Callable[["Config", "Run"], None]
 PolicyFiles = Callable[[Path], "dict[str, Path | bytes]"]  # run dir -> the files that rebuild its last policy
 ResumeFiles = Callable[[Path], "tuple[list[str], int] | None"]  # run dir -> (its last checkpoint's files,
 #                                                                  commit file last; its iteration) or None
+CheckpointsAt = Literal["iteration", "evaluation"]  # when a time-limited runner checkpoints
 
 
 @dataclass(frozen=True)
@@ -59,11 +60,16 @@ class RunnerSpec:
     load_resume_files: Callable[[], ResumeFiles] | None = None
     not_carried: str = "no checkpoint to carry"
     # Trains in the skeleton of ``train/loop.py``, so ``time_limit_min`` stops it at a checkpoint;
-    # the other runners are short and run to their end.
+    # the other runners run to their end (a launch with a deadline starts one only with time for it).
     time_limited: bool = False
-    # When a time-limited runner checkpoints: every "iteration" or at each "evaluation"; the launch
+    # When a time-limited runner checkpoints: every iteration, or at each evaluation; the launch
     # starts none that cannot reach its first checkpoint before the deadline (launch.start_minutes).
-    checkpoints_at: str = "iteration"
+    checkpoints_at: CheckpointsAt = "iteration"
+
+    def __post_init__(self) -> None:
+        if self.checkpoints_at not in get_args(CheckpointsAt):
+            raise ValueError(f"runner {self.name!r}: checkpoints_at={self.checkpoints_at!r} is not one "
+                             f"of {', '.join(get_args(CheckpointsAt))}")
 
     @property
     def films(self) -> bool:

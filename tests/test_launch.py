@@ -191,7 +191,7 @@ def test_a_learner_starts_only_with_time_for_its_first_checkpoint(tmp_path: Path
 
     ppo = PresetPlan("va", "carracing", "ppo", [trial(0), trial(1), trial(2)], 1024,
                      trial_seconds={s: 45 * 570.0 for s in range(3)},
-                     first_checkpoint_seconds={s: 570.0 for s in range(3)})
+                     first_stop_seconds={s: 570.0 for s in range(3)})
     assert launch.start_minutes(ppo, ppo.trials[0]) == pytest.approx(9.5)
     monkeypatch.setattr(launch.time, "monotonic", lambda: 1000.0)
     assert launch._limit_at_start(0.0, 1000.0 + 60 * 4.4, launch.start_minutes(ppo, ppo.trials[0])) is None
@@ -200,6 +200,17 @@ def test_a_learner_starts_only_with_time_for_its_first_checkpoint(tmp_path: Path
     # before the deadline
     minutes = (45 * 570.0 + 4.4 * 60) / 60
     assert "2 trial(s) end, 0 stop at a checkpoint, 1 do not start" in launch.deadline_outlook([ppo], 2, minutes)[0]
-    ppo.first_checkpoint_seconds = {}
+    ppo.first_stop_seconds = {}
     assert launch.start_minutes(ppo, ppo.trials[0]) == launch.MIN_START_MINUTES
     assert "2 trial(s) end, 1 stop at a checkpoint, 0 do not start" in launch.deadline_outlook([ppo], 2, minutes)[0]
+
+
+def test_a_runner_without_checkpoints_starts_only_with_time_for_all_of_it(tmp_path: Path) -> None:
+    """A collection of about 20 minutes runs to its end whatever its limit: with 10 minutes left
+    it is held back, and the dry run says it does not start rather than that it stops."""
+    data = PresetPlan("data", "mountaincar", "collect",
+                      [Trial(0, tmp_path / "seed=0", done=False, cfg=None)], 0,
+                      trial_seconds={0: 1200.0}, first_stop_seconds={0: 1200.0})
+    assert launch.start_minutes(data, data.trials[0]) == pytest.approx(20)
+    assert "0 trial(s) end, 0 stop at a checkpoint, 1 do not start" in launch.deadline_outlook([data], 1, 10)[0]
+    assert "1 trial(s) end, 0 stop at a checkpoint, 0 do not start" in launch.deadline_outlook([data], 1, 21)[0]

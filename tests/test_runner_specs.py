@@ -110,3 +110,11 @@ def test_the_registry_and_config_validation_import_no_simulator_or_torch() -> No
 def test_each_spec_loads_its_run_function(name: str) -> None:
     fn = runner_spec(name).load()
     assert callable(fn) and fn.__name__ == "run"
+
+
+def test_a_spec_with_an_unknown_checkpoint_point_is_refused() -> None:
+    """``checkpoints_at`` decides when the launch lets a learner start (plan._checkpoints_left): a
+    typo would cost its trials as if they checkpointed every iteration."""
+    spec = runner_spec("dbc")
+    with pytest.raises(ValueError, match="checkpoints_at='evaluations' is not one of iteration, evaluation"):
+        type(spec)(spec.name, spec.load, order=spec.order, measure=spec.measure, checkpoints_at="evaluations")

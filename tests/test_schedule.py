@@ -60,12 +60,12 @@ def test_the_dry_run_estimates_each_trials_first_checkpoint(runs_dir: Path) -> N
     trial = plan.trials[0]
     schedule = Schedule.of(trial.cfg)
     assert trial.checkpoints == schedule.evaluations - 1 == 10
-    assert plan.first_checkpoint_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
+    assert plan.first_stop_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
     rates = {"train/mountaincar_ppo": 2.0, "eval/mountaincar_ppo": 3.0}
     plan = plan_profile("quick", str(runs_dir), only=["mountaincar_ppo"], rates=rates, count_records=False)[0]
     trial = plan.trials[0]
     assert trial.checkpoints == Schedule.of(trial.cfg).iterations
-    assert plan.first_checkpoint_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
+    assert plan.first_stop_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
 
 
 def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir: Path) -> None:
@@ -80,5 +80,17 @@ def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir:
     learning = plan.trial_seconds[second.seed]  # no artifacts left to build
     upfront = plan.trial_seconds[first.seed] - learning
     assert upfront > 0
-    assert plan.first_checkpoint_seconds[first.seed] == pytest.approx(upfront + learning / first.checkpoints)
-    assert plan.first_checkpoint_seconds[second.seed] == pytest.approx(learning / second.checkpoints)
+    assert plan.first_stop_seconds[first.seed] == pytest.approx(upfront + learning / first.checkpoints)
+    assert plan.first_stop_seconds[second.seed] == pytest.approx(learning / second.checkpoints)
+
+
+def test_a_runner_that_runs_to_its_end_first_stops_at_its_end(runs_dir: Path) -> None:
+    """Collection has no checkpoint: the launch may start it only with time left for all of it."""
+    from plls_bench.plan import rate_keys
+
+    cfg = compose_preset("mountaincar_data", runs_dir, "budget=quick")
+    rates = {key: 1.0 for key in rate_keys(cfg).values()}
+    plan = plan_profile("quick", str(runs_dir), only=["mountaincar_data"], rates=rates, count_records=False)[0]
+    trial = plan.trials[0]
+    assert trial.checkpoints == 0 and plan.trial_seconds[0] > 0
+    assert plan.first_stop_seconds[0] == plan.trial_seconds[0]
