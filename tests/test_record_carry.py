@@ -155,6 +155,7 @@ def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_r
 
     again = export_records(runs)
     assert again.written == ["mountaincar_ppo/default/seed=0"] and not partial.exists(), "done replaces partial"
+    assert not (runs.parent / "records" / PARTIAL_DIR).exists(), "no empty folder of it is left"
 
 
 @pytest.mark.slow
@@ -232,4 +233,4 @@ def test_a_finished_run_never_replaces_a_finished_record_of_another_config(
     replaced = export_records(dirs["other"].parents[2], records, replace=True)
     assert replaced.written == ["mountaincar_ppo/default/seed=0"]
     assert record.read_config()["config_hash"] == config_hash(cfgs["other"])
-    assert not (records / PARTIAL_DIR / "mountaincar_ppo" / KEY).exists()
+    assert not (records / PARTIAL_DIR).exists(), "the held partial record goes, empty folders with it"

@@ -86,6 +86,16 @@ def write_record(target: Path, contents: dict[str, Content]) -> tuple[bool, list
     return True, too_big
 
 
+def _remove_partial(out: Path, key: str) -> None:
+    """Delete the partial record ``key`` under ``out`` and the folders it leaves empty, so no
+    empty ``partial/<experiment>/<variant>`` stays behind to suggest a trial still pending."""
+    shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)
+    for folder in (out / PARTIAL_DIR / key).parents:
+        if folder == out or not folder.is_dir() or any(folder.iterdir()):
+            break
+        folder.rmdir()
+
+
 def export_run(run_dir: Path, target: Path) -> tuple[bool, list[str]]:
     """A finished run's record: the collector's files and its final policy checkpoint."""
     config = (read_json(run_dir / "config.json") or {}).get("config") or {}
@@ -177,7 +187,7 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         other = None if replace or state != STATUS_DONE else _other_done_record(out / key, ours)
         if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
-            shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)  # the finished record replaces it
+            _remove_partial(out, key)  # the finished record replaces it
         else:
             carried = export_partial(run_dir, out / PARTIAL_DIR / key, config)
             if isinstance(carried, str):
