@@ -330,6 +330,12 @@ def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: p
     (paper / "claims.csv").write_text("\n".join(claims))
     assert report_main(args) == 2
     assert f"claims.csv line {line + 1}: unknown param 'final:stochastc'" in capsys.readouterr().err
+    claims[line] = claims[line].replace(",final:stochastc,", ",final:stochastic,")
+    line = next(i for i, text in enumerate(claims) if ",Suite PPO beats the random policy" in text)  # fig18's check
+    claims[line] = claims[line].replace(",Suite PPO beats the random policy", ",Suite PPO beats the randon policy")
+    (paper / "claims.csv").write_text("\n".join(claims))
+    assert report_main(args) == 2
+    assert f"claims.csv line {line + 1}: unknown requires 'Suite PPO beats the randon policy" in capsys.readouterr().err
 
 
 def test_a_long_figure_title_is_wrapped_to_the_figure_width_not_clipped() -> None:

@@ -179,3 +179,37 @@ def test_dbc_is_checked_against_the_lowest_published_pixel_score_at_100k_env_ste
     assert stuck["budget"] == "quick (3 trials), at 100,000 env steps (iteration 25,000)"
     arm(tmp_path / "runs", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: i / 100 + 10.0 * seed)
     assert row(claims(tmp_path / "runs", tmp_path / "out2"), text)["verdict"] == "reproduced"  # 250, 260, 270
+
+
+def test_a_comparison_with_a_baseline_that_fails_its_check_is_not_made(tmp_path: Path) -> None:
+    """Fig. 21 requires the DBC baseline row: with DBC stuck near 0 (below the published 202) PL-LS +
+    DBC "beats" it in every pair of trials, but the rows are not made, and say why and what they
+    would have read. With a DBC that reaches the published range the same PL-LS arm is judged."""
+    plls = "PL-LS with DBC obtains higher returns than DBC"
+    arm(tmp_path / "stuck", "cheetah_plls_dbc", 3, [0, 12_500, 25_000], lambda seed, i: 50.0 + seed)
+    arm(tmp_path / "stuck", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: 1.0 + seed)
+    stuck = claims(tmp_path / "stuck", tmp_path / "out1")
+    assert row(stuck, "Suite DBC reaches the published pixel range")["verdict"] == "not reproduced"
+    for text in (plls, "PL-LS with DBC learns faster than DBC"):
+        gated = row(stuck, text)
+        assert gated["verdict"] == "not made: baseline fails its check" and gated["suite_value"] == 1
+        assert gated["reason"].startswith("its baseline check 'Suite DBC reaches the published pixel range")
+        assert "is not reproduced (2" in gated["reason"]
+        assert "its own reading: reproduced, suite value > 0.5" in gated["reason"]
+    assert "1 not made: baseline fails its check" not in (tmp_path / "out1" / "tables" / "claims.md").read_text()
+    assert "2 not made: baseline fails its check" in (tmp_path / "out1" / "tables" / "claims.md").read_text()
+    arm(tmp_path / "learns", "cheetah_plls_dbc", 3, [0, 12_500, 25_000], lambda seed, i: 200.0 + i / 100 + seed)
+    arm(tmp_path / "learns", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: i / 100 + 10.0 * seed)
+    learns = claims(tmp_path / "learns", tmp_path / "out2")
+    assert row(learns, plls)["verdict"] == "reproduced" and "baseline check" not in row(learns, plls)["reason"]
+
+
+def test_a_baseline_check_not_yet_judged_is_noted_on_the_comparisons_that_require_it(tmp_path: Path) -> None:
+    arm(tmp_path / "runs", "carracing_plls_ppo", 3, [0, 32, 64], lambda seed, i: 100.0 + seed)
+    arm(tmp_path / "runs", "carracing_ppo", 3, [0, 32, 64], lambda seed, i: -32.3 + 10.0 * (seed - 1))
+    table = claims(tmp_path / "runs", tmp_path / "out")
+    assert row(table, "Suite PPO beats the random policy")["verdict"] == "inconclusive"
+    beats = row(table, FIG18)
+    assert beats["verdict"] == "reproduced"
+    assert beats["reason"].endswith("its baseline check 'Suite PPO beats the random policy on CarRacing at 1M env "
+                                    "steps (final return)' is inconclusive")

@@ -5,7 +5,9 @@ Each claim in ``results/paper/claims.csv`` names a ``kind`` (how the suite measu
 function below), a ``rule`` and ``threshold`` (what counts as reproducing it) and the least
 ``min_budget`` and x range (``needs_x``) at which it can be judged. The verdict reads the suite's
 95% CI: entirely on the claim's side -> reproduced, entirely on the other -> not reproduced,
-straddling -> inconclusive; below the budget or range -> not run at this budget.
+straddling -> inconclusive; below the budget or range -> not run at this budget. A comparison
+that ``requires`` a baseline check (another row: the baseline reaches a published number, or beats
+the random policy) is not made while that check is not reproduced.
 
 Stochastic quantities need :data:`~plls_bench.report.matched.MIN_TRIALS` finished trials (per arm),
 and two arms are compared on the evaluations every finished trial of both reaches
@@ -33,7 +35,7 @@ from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_
 from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement
 from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
 from plls_bench.report.sweep_claim import sweep_best
-from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, Estimate,
+from plls_bench.report.verdicts import (NOT_MADE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, VERDICTS, Estimate,
                                         rule_text, verdict)
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
@@ -147,7 +149,7 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
 }
 
 
-def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str, str | None]:
+def judge(runs: Runs, claim: dict[str, str]) -> Judged:
     """(estimate, verdict, reason, budget text) for one claim row."""
     budgets = {n: _run_budget(runs, n, claim["kind"]) for n in (claim["experiment"], claim["baseline"]) if n}
     if None in budgets.values():  # every arm without a run is named, so the row says all that is missing
@@ -170,6 +172,23 @@ def judge(runs: Runs, claim: dict[str, str]) -> tuple[Estimate | None, str, str,
         basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
     reason = f"suite value {rule_text(claim)}{basis}"
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason, est.budget
+
+
+Judged = tuple[Estimate | None, str, str, str | None]  # judge's (estimate, verdict, reason, budget text)
+
+
+def gated(outcome: str, reason: str, required: str, check: Judged) -> tuple[str, str]:
+    """A comparison's verdict and reason once its baseline check ``required`` is judged (``check``):
+    not made if the check is not reproduced (the comparison's own reading stays in the reason);
+    its own otherwise, noting a check that is not (yet) reproduced."""
+    check_estimate, check_outcome = check[0], check[1]
+    value = f" ({check_estimate.text})" if check_estimate else ""
+    if check_outcome == NOT_REPRODUCED:
+        return NOT_MADE, (f"its baseline check '{required}' is not reproduced{value}; "
+                          f"its own reading: {outcome}, {reason}")
+    if check_outcome == REPRODUCED or check_outcome == outcome == NOT_RUN:  # its reason names what is missing
+        return outcome, reason
+    return outcome, f"{reason}; its baseline check '{required}' is {check_outcome}"
 
 
 def _run_budget(runs: Runs, name: str, kind: str) -> str | None:
@@ -213,6 +232,7 @@ def _param_problems(row: dict[str, str]) -> list[str]:
 def read_claims(paper_dir: Path) -> list[dict[str, str]]:
     """``claims.csv``, checked so that a typo fails loudly naming the row."""
     rows = read_paper(paper_dir, "claims")
+    names = {row["claim"] for row in rows}
     for line, row in enumerate(rows, 2):
         allowed = {"kind": tuple(KINDS), "rule": RULES, "min_budget": BUDGET_ORDER}
         problems = [f"{key} {row[key]!r}" for key, values in allowed.items() if row[key] not in values]
@@ -220,6 +240,8 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
         problems += [f"{key} {row[key]!r} (not a number)" for key in numbers
                      if (row[key] or key == "threshold") and not _is_number(row[key])]
         problems += _param_problems(row)
+        if row["requires"] and (row["requires"] == row["claim"] or row["requires"] not in names):
+            problems.append(f"requires {row['requires']!r} (the claim text of another row)")
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     return rows
@@ -228,11 +250,16 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     """The "paper vs suite" table: every claim of ``claims.csv`` with the suite's value and verdict."""
     rows, records = [], []
-    for claim in read_claims(opts.paper_dir):
-        est, outcome, reason, budget = judge(runs, claim)
+    claims = read_claims(opts.paper_dir)
+    judged = {claim["claim"]: judge(runs, claim) for claim in claims}
+    for claim in claims:
+        est, outcome, reason, budget = judged[claim["claim"]]
+        if claim["requires"]:
+            outcome, reason = gated(outcome, reason, claim["requires"], judged[claim["requires"]])
         rows.append([claim["claim"], claim["paper"], est.text if est else NA, budget or NA,
                      outcome, reason, claim["source"]])
         records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],
+                        "requires": claim["requires"],
                         "paper": claim["paper"], "paper_value": claim["paper_value"],
                         "paper_pm": claim["paper_pm"], "suite_value": est.value if est else None,
                         "ci_low": est.ci[0] if est else None, "ci_high": est.ci[1] if est else None,
@@ -240,11 +267,13 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
                         "verdict": outcome, "reason": reason, "rule": claim["rule"],
                         "threshold": claim["threshold"], "source": claim["source"]})
     counts = pd.Series([r["verdict"] for r in records]).value_counts()
-    summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN))
+    shown = [v for v in VERDICTS if v != NOT_MADE or v in counts]  # "0 not made" would only be noise
+    summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in shown)
     caption = (f"{len(records)} claims: {summary}. A verdict reads the suite's 95% bootstrap CI (percentile, "
                "fixed seed): entirely on the claim's side of its threshold = reproduced, entirely on the other "
                "side = not reproduced, across it = inconclusive; claims need the budget and x range named in "
-               "results/paper/claims.csv. Probabilities of improvement follow rliable (Agarwal et al., 2021).")
+               "results/paper/claims.csv. A comparison whose baseline fails its own check (the row it "
+               "requires) is not made. Probabilities of improvement follow rliable (Agarwal et al., 2021).")
     table = Table(f"{entry.ref}. {entry.title}", caption,
                   ["Claim", "Paper", "Suite [95% CI]", "Budget (trials)", "Verdict", "Rule", "Source"],
                   rows, pd.DataFrame(records))

@@ -100,8 +100,9 @@ PAPER_COLUMNS = {
     "table1": HYPER_COLUMNS, "table2": HYPER_COLUMNS,
     "table3": ("model", "experiment", "total_parameters", "trainable_parameters", "iterations_to_convergence",
                "sampled_frequency", "source"),
-    "claims": ("claim", "entry", "kind", "experiment", "baseline", "param", "paper", "paper_value", "paper_pm",
-               "rule", "threshold", "threshold_high", "x_axis", "from_x", "needs_x", "min_budget", "source"),
+    "claims": ("claim", "entry", "kind", "experiment", "baseline", "requires", "param", "paper", "paper_value",
+               "paper_pm", "rule", "threshold", "threshold_high", "x_axis", "from_x", "needs_x", "min_budget",
+               "source"),
 }
 
 

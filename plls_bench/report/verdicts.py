@@ -8,6 +8,10 @@ from dataclasses import dataclass
 RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduced", "inconclusive",
                                                      "not run at this budget")
+# A comparison whose baseline fails its own check (its ``requires`` row is not reproduced): a method
+# beating, or losing to, a baseline that does not learn says nothing about the method.
+NOT_MADE = "not made: baseline fails its check"
+VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN, NOT_MADE)
 
 
 @dataclass(frozen=True)
