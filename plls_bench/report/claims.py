@@ -149,6 +149,9 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
 }
 
 
+Judged = tuple[Estimate | None, str, str, str | None]  # judge's (estimate, verdict, reason, budget text)
+
+
 def judge(runs: Runs, claim: dict[str, str]) -> Judged:
     """(estimate, verdict, reason, budget text) for one claim row."""
     budgets = {n: _run_budget(runs, n, claim["kind"]) for n in (claim["experiment"], claim["baseline"]) if n}
@@ -172,9 +175,6 @@ def judge(runs: Runs, claim: dict[str, str]) -> Judged:
         basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
     reason = f"suite value {rule_text(claim)}{basis}"
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason, est.budget
-
-
-Judged = tuple[Estimate | None, str, str, str | None]  # judge's (estimate, verdict, reason, budget text)
 
 
 def gated(outcome: str, reason: str, required: str, check: Judged) -> tuple[str, str]:
