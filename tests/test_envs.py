@@ -64,6 +64,21 @@ def test_cheetah_episode_is_250_agent_steps_at_repeat_4(runs_dir: Path) -> None:
     assert steps == 250
 
 
+@pytest.mark.parametrize(("limit", "agent_steps"), [(150, 38), (1500, 375)])
+def test_cheetah_episode_ends_at_env_max_episode_steps(limit: int, agent_steps: int, runs_dir: Path) -> None:
+    """``env.max_episode_steps`` (frames) replaces dm_control's 1000-step time limit, either way:
+    it was ignored once, so a shorter episode silently ran to 1000 frames."""
+    cfg = compose_preset(None, runs_dir, "env=cheetah", f"env.max_episode_steps={limit}").env
+    env = make_env(cfg, for_data=True)
+    env.reset(seed=0)
+    steps, truncated = 0, False
+    while not truncated:
+        steps += 1
+        truncated = env.step(env.action_space.sample())[3]
+    assert steps == agent_steps and env.unwrapped._env.physics.data.time == pytest.approx(limit * 0.01)
+    env.close()
+
+
 def test_same_seed_same_first_observation(runs_dir: Path) -> None:
     for task in ("mountaincar", "cheetah"):
         env = make_env(env_cfg(task, runs_dir))

@@ -34,19 +34,21 @@ class DMCEnv(gym.Env):
     """``domain-task`` from dm_control's suite with actions in [-1, 1]^n.
 
     Observations: ``(3 * frame_stack, size, size)`` uint8 pixels, or the flattened proprioceptive
-    state (float32) when ``pixels=False``. An episode ends by truncation at dm_control's time limit.
+    state (float32) when ``pixels=False``. An episode ends by truncation after ``max_episode_steps``
+    control steps (frames, counting action repeat; ``env.max_episode_steps``), which replaces the
+    task's own time limit (cheetah's: 1000), or at that limit when None.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
     def __init__(self, domain_task: str, *, pixels: bool = True, image_size: int = 84,
                  camera_id: int = 0, action_repeat: int = 1, frame_stack: int = 1,
-                 render_mode: str | None = None) -> None:
+                 max_episode_steps: int | None = None, render_mode: str | None = None) -> None:
         ensure_mujoco_gl()  # even state-only: importing dm_control initialises a GL backend
         self.domain, self.task = domain_task.split("-", 1)
         self.pixels, self.image_size, self.camera_id = pixels, image_size, camera_id
         self.action_repeat, self.frame_stack = action_repeat, frame_stack
-        self.render_mode = render_mode
+        self.render_mode, self.max_episode_steps, self._steps = render_mode, max_episode_steps, 0
         self._env = self._load(seed=None)
         spec = self._env.action_spec()
         self._act_low, self._act_high = spec.minimum.astype(np.float64), spec.maximum.astype(np.float64)
@@ -62,7 +64,8 @@ class DMCEnv(gym.Env):
     def _load(self, seed: int | None) -> Any:
         from dm_control import suite  # after ensure_mujoco_gl: mujoco reads MUJOCO_GL at import
 
-        return suite.load(self.domain, self.task, task_kwargs={"random": seed})
+        limit = {} if self.max_episode_steps is None else {"time_limit": float("inf")}  # counted in step
+        return suite.load(self.domain, self.task, task_kwargs={"random": seed, **limit})
 
     def _frame(self) -> np.ndarray:
         image = self._env.physics.render(self.image_size, self.image_size, camera_id=self.camera_id)
@@ -78,7 +81,7 @@ class DMCEnv(gym.Env):
         super().reset(seed=seed)
         if seed is not None:  # dm_control seeds its task RNG at load time
             self._env = self._load(seed)
-        time_step = self._env.reset()
+        time_step, self._steps = self._env.reset(), 0
         if self.pixels:
             frame = self._frame()
             for _ in range(self.frame_stack):
@@ -90,13 +93,13 @@ class DMCEnv(gym.Env):
         scaled = self._act_low + (action + 1.0) * 0.5 * (self._act_high - self._act_low)
         reward, time_step = 0.0, None
         for _ in range(self.action_repeat):
-            time_step = self._env.step(scaled)
+            time_step, self._steps = self._env.step(scaled), self._steps + 1
             reward += time_step.reward or 0.0
-            if time_step.last():
+            if time_step.last() or self._steps == self.max_episode_steps:
                 break
         if self.pixels:
             self._frames.append(self._frame())
-        truncated = bool(time_step.last())
+        truncated = bool(time_step.last()) or self._steps == self.max_episode_steps
         return self._observation(time_step), float(reward), False, truncated, {}
 
     def render(self) -> np.ndarray | None:
