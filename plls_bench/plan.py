@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import json
+import math
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -201,15 +202,16 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
 
 def _checkpoints_left(cfg: Config, at: int) -> int:
     """Checkpoints a time-limited learner resuming at iteration ``at`` (0: fresh) still makes after
-    it starts: every iteration, or every evaluation (``RunnerSpec.checkpoints_at``); 0 for the
-    runners that run to their end. A fresh run's checkpoint at iteration 0 comes before any
-    training, so it is not one of them."""
+    it starts: every iteration, or at the end of each episode of its one env and at each
+    evaluation (``RunnerSpec.checkpoints_at``); 0 for the runners that run to their end. A fresh
+    run's checkpoint at iteration 0 comes before any training, so it is not one of them."""
     spec = runner_spec(cfg.runner)
     if not spec.time_limited:
         return 0
     schedule = Schedule.of(cfg)
-    if spec.checkpoints_at == "evaluation":
-        return schedule.evaluations - schedule.evaluations_through(at)
+    if spec.checkpoints_at == "episode":  # episodes counted from iteration 0, as a fresh run's are
+        episode = math.ceil(cfg.env.max_episode_steps / schedule.env_steps_per_iteration)
+        return sum(i % episode == 0 or schedule.eval_at(i) for i in range(at + 1, schedule.iterations + 1))
     return schedule.iterations - at
 
 

@@ -30,7 +30,7 @@ RunFn = Callable[["Config", "Run"], None]
 PolicyFiles = Callable[[Path], "dict[str, Path | bytes]"]  # run dir -> the files that rebuild its last policy
 ResumeFiles = Callable[[Path], "tuple[list[str], int] | None"]  # run dir -> (its last checkpoint's files,
 #                                                                  commit file last; its iteration) or None
-CheckpointsAt = Literal["iteration", "evaluation"]  # when a time-limited runner checkpoints
+CheckpointsAt = Literal["iteration", "episode"]  # when a time-limited runner checkpoints
 
 
 @dataclass(frozen=True)
@@ -62,8 +62,9 @@ class RunnerSpec:
     # Trains in the skeleton of ``train/loop.py``, so ``time_limit_min`` stops it at a checkpoint;
     # the other runners run to their end (a launch with a deadline starts one only with time for it).
     time_limited: bool = False
-    # When a time-limited runner checkpoints: every iteration, or at each evaluation; the launch
-    # starts none that cannot reach its first checkpoint before the deadline (launch.start_minutes).
+    # When a time-limited runner checkpoints: every iteration, or at the end of each episode of its
+    # one env and at each evaluation; the launch starts none that cannot reach its first checkpoint
+    # before the deadline (launch.start_minutes).
     checkpoints_at: CheckpointsAt = "iteration"
 
     def __post_init__(self) -> None:
@@ -150,7 +151,7 @@ SPECS: tuple[RunnerSpec, ...] = (
     RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
                load_resume_files=_dbc_checkpoint, time_limited=True,  # pixel DBC's is over MAX_PARTIAL_BYTES
-               checkpoints_at="evaluation"),
+               checkpoints_at="episode"),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

@@ -103,3 +103,28 @@ def test_parts_that_do_not_join_to_the_recorded_file_are_refused(tmp_path: Path,
     with pytest.raises(RuntimeError, match="the parts of checkpoints/dbc.pt do not join to the file it recorded"):
         seed_from_partial(run.path, runs, cfg_hash)
     assert not (run.path / "checkpoints" / "dbc.pt").exists(), "no checkpoint from a damaged record"
+
+
+@pytest.mark.slow
+def test_dbc_checkpoints_at_each_episode_end_and_resumes_from_one(
+        tmp_path: Path, one_torch_thread: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Episodes of 150 steps, evaluations every 200: checkpoints at 0, 150, 200, 300 and 400, so a
+    deadline costs at most an episode. Interrupted after the one at 300 (an episode end, not an
+    evaluation), the run resumes there: every row once, the evaluations as an unbroken run's."""
+    overrides = (*SMALL, "env.max_episode_steps=150")
+    dirs = {name: run_dir_path(tmp_path / name / "runs", *KEY.parts[:2], 0) for name in ("whole", "resumed")}
+    cfgs = {name: compose_preset("cheetah_sac_state", d.parents[2], *overrides) for name, d in dirs.items()}
+    saved: list[int] = []
+    real = dbc.DBCTrainer.checkpoint
+    with monkeypatch.context() as patch:
+        patch.setattr(dbc.DBCTrainer, "checkpoint", lambda self, at: (saved.append(at.iteration), real(self, at)))
+        assert execute(cfgs["whole"], dirs["whole"]) == "done"
+    assert saved == [0, 150, 200, 300, 400]
+
+    interrupted(cfgs["resumed"], dirs["resumed"], dbc.DBCTrainer, 300, monkeypatch)
+    assert read_json(dirs["resumed"] / "checkpoints" / "progress.json")["iteration"] == 300
+    assert execute(cfgs["resumed"], dirs["resumed"]) == "done"
+    for stream in ("train", "eval"):
+        iterations = [r["iteration"] for r in rows(dirs["resumed"], stream)]
+        assert iterations == [r["iteration"] for r in rows(dirs["whole"], stream)], f"{stream}: no row lost or twice"
+    assert rows(dirs["resumed"], "eval")[:2] == rows(dirs["whole"], "eval")[:2], "the same run up to the checkpoint"

@@ -116,5 +116,5 @@ def test_a_spec_with_an_unknown_checkpoint_point_is_refused() -> None:
     """``checkpoints_at`` decides when the launch lets a learner start (plan._checkpoints_left): a
     typo would cost its trials as if they checkpointed every iteration."""
     spec = runner_spec("dbc")
-    with pytest.raises(ValueError, match="checkpoints_at='evaluations' is not one of iteration, evaluation"):
-        type(spec)(spec.name, spec.load, order=spec.order, measure=spec.measure, checkpoints_at="evaluations")
+    with pytest.raises(ValueError, match="checkpoints_at='episodes' is not one of iteration, episode"):
+        type(spec)(spec.name, spec.load, order=spec.order, measure=spec.measure, checkpoints_at="episodes")

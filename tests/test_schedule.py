@@ -52,14 +52,16 @@ def test_the_dry_run_costs_the_evaluations_of_the_schedule(runs_dir: Path) -> No
 
 
 def test_the_dry_run_estimates_each_trials_first_checkpoint(runs_dir: Path) -> None:
-    """DBC checkpoints at each evaluation: a fresh quick trial's first checkpoint comes after one
-    evaluation interval of its training and evaluations (not after the checkpoint at iteration 0).
+    """DBC checkpoints at the end of each training episode and at each evaluation (cheetah's
+    evaluations fall on episode ends): a fresh quick trial's first checkpoint comes after one
+    episode's share of its training and evaluations (not after the checkpoint at iteration 0).
     PPO checkpoints every iteration. Neither preset builds an artifact here (no V_s / V_a)."""
     rates = {"train/cheetah_dbc": 1.0, "eval/cheetah_dbc": 1.0}
     plan = plan_profile("quick", str(runs_dir), only=["cheetah_dbc"], rates=rates, count_records=False)[0]
     trial = plan.trials[0]
     schedule = Schedule.of(trial.cfg)
-    assert trial.checkpoints == schedule.evaluations - 1 == 10
+    episode = trial.cfg.env.max_episode_steps // trial.cfg.env.action_repeat
+    assert schedule.eval_every % episode == 0 and trial.checkpoints == schedule.iterations // episode == 100
     assert plan.first_stop_seconds[0] == pytest.approx(plan.trial_seconds[0] / trial.checkpoints)
     rates = {"train/mountaincar_ppo": 2.0, "eval/mountaincar_ppo": 3.0}
     plan = plan_profile("quick", str(runs_dir), only=["mountaincar_ppo"], rates=rates, count_records=False)[0]

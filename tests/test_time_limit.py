@@ -26,16 +26,20 @@ class FakeClock:
         return self.t
 
 
-def test_time_limit_stops_when_the_next_interval_would_pass_it() -> None:
+def test_time_limit_stops_when_the_longest_interval_would_pass_it() -> None:
+    """The longest interval so far, not the last: DBC's interval with an evaluation (here 200 s)
+    comes back after short ones that end an episode (50 s, 20 s)."""
     clock = FakeClock()
     limit = TimeLimit(10.0, now=clock)  # 600 s
     clock.t = 100.0  # set-up and restore
     limit.mark()
-    clock.t = 300.0  # first checkpoint: 300 s in, the interval took 200 s -> next ends at 500
+    clock.t = 300.0  # first checkpoint: 300 s in, the interval took 200 s -> next ends by 500
     assert not limit.stop_after_checkpoint()
-    clock.t = 450.0  # 450 s in, interval 150 s -> next ends at 600, not past the limit
+    clock.t = 350.0  # interval 50 s, the longest still 200 -> by 550
     assert not limit.stop_after_checkpoint()
-    clock.t = 610.0  # 610 s in, interval 160 s -> would end at 770
+    clock.t = 400.0  # by 600, not past the limit
+    assert not limit.stop_after_checkpoint()
+    clock.t = 420.0  # interval 20 s alone would end by 440, but an interval of 200 would end at 620
     assert limit.stop_after_checkpoint()
 
 

@@ -7,8 +7,8 @@ agent step (``init_steps`` of them at once at the first learning step), the upda
 env step. :class:`DBCTrainer` runs in the training skeleton (:mod:`plls_bench.train.loop`); one
 iteration is one agent step. Every ``budget.eval_every_env_steps`` env steps (frames, counting
 action repeat; :mod:`plls_bench.train.schedule`) the deterministic policy is evaluated on
-``budget.eval_episodes`` fresh episodes of a separately seeded env, then the run is checkpointed
-(see :mod:`plls_bench.train.dbc_state`).
+``budget.eval_episodes`` fresh episodes of a separately seeded env. The run is checkpointed after
+each evaluation and at the end of each training episode (see :mod:`plls_bench.train.dbc_state`).
 """
 from __future__ import annotations
 
@@ -82,7 +82,7 @@ class Window:
 class DBCTrainer:
     """DBC in the training skeleton (:mod:`plls_bench.train.loop`). One iteration is one agent
     step (``env.action_repeat`` frames) with its updates; a ``train.jsonl`` row per training
-    episode and one before each evaluation; a checkpoint after each evaluation."""
+    episode and one before each evaluation; a checkpoint after each of them."""
 
     unit = "step"
 
@@ -121,7 +121,7 @@ class DBCTrainer:
             self.train_env.seed(derived_seed((self.seeds.train, at.agent_steps)))
         self.obs = self.train_env.reset()
         self.replay.start_episode(self.obs[0])
-        self.window, self.episode_return = Window(at), 0.0
+        self.window, self.episode_return, self.episode_ended = Window(at), 0.0, False
 
     def train_iteration(self, at: Progress) -> tuple[Progress, dict[str, Any] | None]:
         """One agent step; the train row's metrics at the end of an episode or before an evaluation."""
@@ -129,6 +129,7 @@ class DBCTrainer:
         at = replace(at, iteration=at.iteration + 1, agent_steps=at.agent_steps + 1,
                      env_steps=at.env_steps + self.cfg.env.action_repeat, episodes=at.episodes + finished)
         self.episode_return += reward
+        self.episode_ended = finished
         if finished:
             self.window.returns.append(self.episode_return)
             self.episode_return = 0.0
@@ -179,7 +180,10 @@ class DBCTrainer:
         """DBC logs only to ``metrics/``."""
 
     def checkpoint_due(self, at: Progress, evaluated: bool) -> bool:
-        return evaluated
+        """After each evaluation, and at the end of each training episode: a sitting's deadline
+        then costs at most an episode of training (a pixel episode is about 4 minutes on one CPU
+        core, an evaluation interval about 50), and a resume drops no part of an episode."""
+        return evaluated or self.episode_ended
 
     def checkpoint(self, at: Progress) -> None:
         save_checkpoint(self.run, self.agent, self.replay, at, self.rng)

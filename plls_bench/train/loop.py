@@ -15,7 +15,7 @@ without duplicates.
 
 ``time_limit_min`` (0: none) ends a run early, at a checkpoint, for cluster jobs with a wall-clock
 limit and compute spread over sessions: after each checkpoint the loop stops if this process's
-training time plus the time the last checkpoint interval took would pass the limit, and raises
+training time plus the longest checkpoint interval so far would pass the limit, and raises
 :class:`TimeLimitReached`; the runner leaves the run ``stopped`` and the next launch resumes it.
 Nothing past the checkpoint is lost, unlike a job killed at its limit.
 """
@@ -60,12 +60,15 @@ class TimeLimitReached(Exception):
 
 
 class TimeLimit:
-    """Whether to stop after a checkpoint: this process's training time plus the last checkpoint
-    interval would pass ``limit_min`` minutes (0: never). Times are ``now()`` seconds."""
+    """Whether to stop after a checkpoint: this process's training time plus the longest checkpoint
+    interval so far would pass ``limit_min`` minutes (0: never). The longest, not the last: DBC's
+    intervals that hold an evaluation are longer than those that end an episode. Times are
+    ``now()`` seconds."""
 
     def __init__(self, limit_min: float, now: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s, self.now = 60.0 * limit_min, now
         self.started = self.last_checkpoint = now()
+        self.longest = 0.0
 
     def mark(self) -> None:
         """Start timing the next checkpoint interval here (set-up and restore time are not one)."""
@@ -74,8 +77,9 @@ class TimeLimit:
     def stop_after_checkpoint(self) -> bool:
         """Call right after each checkpoint of the training loop."""
         now = self.now()
-        interval, self.last_checkpoint = now - self.last_checkpoint, now
-        return self.limit_s > 0 and (now - self.started) + interval > self.limit_s
+        self.longest = max(self.longest, now - self.last_checkpoint)
+        self.last_checkpoint = now
+        return self.limit_s > 0 and (now - self.started) + self.longest > self.limit_s
 
 
 class Trainer(Protocol):
