@@ -5,7 +5,7 @@ per preset, whose jobs submitit runs side by side.
 One multirun per preset would leave cores idle on this machine whenever a preset's pending trials
 do not divide by the job count (3 trials on 2 cores: the third runs alone), and so would a sweep
 whose variants each have one trial left. The queue starts the next pending trial of any preset of
-the same stage as soon as a trial ends, the shortest first (:func:`queue_order`). Stages are the
+the same stage as soon as a trial ends, the shortest first, or the longest (:func:`queue_order`). Stages are the
 runners' plan order (:attr:`plls_bench.runner_specs.RunnerSpec.order`): artifacts are built before
 the presets that read them, and the learners (PPO, DBC) share the last stage. A queue may have a
 deadline (``reproduce --stop-after-min``): each trial gets the time left as its ``time_limit_min``
@@ -38,6 +38,10 @@ INTERRUPT_GRACE_SECONDS = 30.0
 # first checkpoint whatever its limit, so it would overrun the deadline for little work. A trial
 # with an estimate needs the estimated time to its first stop too (start_minutes).
 MIN_START_MINUTES = 2.0
+# Which pending trial the queue starts next (reproduce --queue-order): the least estimated time left
+# (trials end, and are recorded, soonest), or the most (the classic longest-first rule: the whole
+# queue ends soonest, for when only all trials of an arm together make a verdict).
+QUEUE_ORDERS = ("shortest", "longest")
 
 
 def start_minutes(plan: PresetPlan, trial: Trial) -> float:
@@ -70,11 +74,12 @@ def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: l
 
 
 def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int = 1,
-              per_trial: bool = True, time_limit_min: float = 0.0, stop_after_min: float = 0.0) -> list[str]:
+              per_trial: bool = True, time_limit_min: float = 0.0, stop_after_min: float = 0.0,
+              order: str = "shortest") -> list[str]:
     """Launch each preset's pending trials, stage by stage; returns the presets with a failed trial.
-    ``per_trial``: the queue of one-trial multiruns, ``jobs`` at a time, ending by ``stop_after_min``
-    minutes from now (0: no deadline); else one multirun per preset (SLURM). ``time_limit_min``: each
-    trial's own limit (0: none)."""
+    ``per_trial``: the queue of one-trial multiruns, ``jobs`` at a time in ``order``
+    (:data:`QUEUE_ORDERS`), ending by ``stop_after_min`` minutes from now (0: no deadline); else one
+    multirun per preset (SLURM). ``time_limit_min``: each trial's own limit (0: none)."""
     deadline = time.monotonic() + 60.0 * stop_after_min if stop_after_min > 0 else None
     failed: list[str] = []
     for stage_plans in stages(plans):
@@ -83,7 +88,7 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
                 print(f"[reproduce] {plan.label}: all {len(plan.trials)} trial(s) already done", flush=True)
         todo = [p for p in stage_plans if p.pending]
         if per_trial:
-            failed += _run_queued(todo, profile, runs_dir, overrides, jobs, time_limit_min, deadline)
+            failed += _run_queued(todo, profile, runs_dir, overrides, jobs, time_limit_min, deadline, order)
             continue
         for plan in todo:
             start = time.perf_counter()
@@ -99,17 +104,22 @@ def stages(plans: list[PresetPlan]) -> list[list[PresetPlan]]:
     return [list(stage) for _, stage in itertools.groupby(plans, key=lambda p: runner_spec(p.runner).order)]
 
 
-def queue_order(plans: list[PresetPlan]) -> list[tuple[int, Trial]]:
+def queue_order(plans: list[PresetPlan], order: str = "shortest") -> list[tuple[int, Trial]]:
     """One stage's pending trials as ``(plan index, trial)`` in the order the queue starts them:
-    shortest estimated time left first, so trials end, and can be recorded, as soon as they can;
-    without an estimate for every trial (a rate never measured), least left of its own training
-    first, which puts trials that resume from a checkpoint before the fresh ones. Ties keep plan
+    ``shortest`` estimated time left first, so trials end, and can be recorded, as soon as they can,
+    or ``longest`` first, so the last one ends soonest (trials of 44, 34 and 22 CNN PPO iterations
+    on 2 cores: 66 iterations of wall time shortest-first, 56 longest-first). Without an estimate for
+    every trial (a rate never measured), the fraction of its own training left decides, so
+    ``shortest`` puts trials that resume from a checkpoint before the fresh ones. Ties keep plan
     order. Time, not the fraction left, orders a stage of several presets: 20% of a 3 CPU-hour state
     SAC trial is over before 70% of a 10 CPU-hour CNN PPO trial."""
+    if order not in QUEUE_ORDERS:
+        raise ValueError(f"queue order {order!r} is not one of {', '.join(QUEUE_ORDERS)}")
     pending = [(i, t) for i, p in enumerate(plans) for t in p.pending]
+    longest = order == "longest"  # sorted(reverse=True) keeps ties in plan order too
     if all(t.seed in plans[i].trial_seconds for i, t in pending):
-        return sorted(pending, key=lambda item: plans[item[0]].trial_seconds[item[1].seed])
-    return sorted(pending, key=lambda item: item[1].remaining)
+        return sorted(pending, key=lambda item: plans[item[0]].trial_seconds[item[1].seed], reverse=longest)
+    return sorted(pending, key=lambda item: item[1].remaining, reverse=longest)
 
 
 @dataclass(frozen=True)
@@ -122,14 +132,14 @@ class Slot:
     least_left: float  # seconds it needs left to the deadline to start (start_minutes)
 
 
-def simulate_queue(plans: list[PresetPlan], jobs: int) -> list[Slot]:
+def simulate_queue(plans: list[PresetPlan], jobs: int, order: str = "shortest") -> list[Slot]:
     """The queue over ``plans`` as estimated: each stage's trials started in :func:`queue_order` on
     the first of ``jobs`` slots to free, stages one after another, each trial taking its estimated
     seconds (``PresetPlan.trial_seconds``; unknown ones count 0)."""
     slots, stage_start = [], 0.0
     for stage_plans in stages(plans):
         free = [stage_start] * max(jobs, 1)  # the time each job frees up, a heap
-        for i, trial in queue_order(stage_plans):
+        for i, trial in queue_order(stage_plans, order):
             start = heapq.heappop(free)
             end = start + stage_plans[i].trial_seconds.get(trial.seed, 0.0)
             heapq.heappush(free, end)
@@ -138,19 +148,20 @@ def simulate_queue(plans: list[PresetPlan], jobs: int) -> list[Slot]:
     return slots
 
 
-def estimated_wall_seconds(plans: list[PresetPlan], jobs: int) -> float:
+def estimated_wall_seconds(plans: list[PresetPlan], jobs: int, order: str = "shortest") -> float:
     """Wall-clock seconds of the queue (:func:`simulate_queue`). Not total / jobs: 3 trials on 2
     jobs leave the last to run alone, so the longest chain, not the average, sets the wall time."""
-    return max((slot.end for slot in simulate_queue(plans, jobs)), default=0.0)
+    return max((slot.end for slot in simulate_queue(plans, jobs, order)), default=0.0)
 
 
-def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float) -> list[str]:
+def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float,
+                     order: str = "shortest") -> list[str]:
     """What ``--stop-after-min`` leaves by the estimates: how many trials end, are stopped at a
     checkpoint (each with about how far its training gets) or never start."""
     if any(p.missing_rates for p in plans):
         return [f"by --stop-after-min {stop_after_min:g}: no outlook, some trials have no estimate"]
     deadline = 60.0 * stop_after_min
-    slots = simulate_queue(plans, jobs)
+    slots = simulate_queue(plans, jobs, order)
     late = [s for s in slots if s.start > deadline - s.least_left]
     stopped = [s for s in slots if s not in late and s.end > deadline]
     lines = [f"by --stop-after-min {stop_after_min:g}: {len(slots) - len(late) - len(stopped)} trial(s) end, "
@@ -164,10 +175,10 @@ def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float) 
 
 
 def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int,
-                time_limit_min: float, deadline: float | None) -> list[str]:
+                time_limit_min: float, deadline: float | None, order: str = "shortest") -> list[str]:
     """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time, in
     :func:`queue_order`."""
-    pending = queue_order(plans)
+    pending = queue_order(plans, order)
 
     def launcher(i: int, trial: Trial) -> Launch:
         def argv() -> list[str] | None:

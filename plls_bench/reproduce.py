@@ -22,7 +22,7 @@ from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
-from plls_bench.launch import deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans
+from plls_bench.launch import QUEUE_ORDERS, deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans
 from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
@@ -37,7 +37,7 @@ RESULTS_OUT, SMOKE_OUT = "results", "results/smoke"
 EXIT_INTERRUPTED = 130
 
 
-def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0) -> str:
+def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0, order: str = "shortest") -> str:
     """The plan as a table, with estimated compute from measured throughput, and what a
     ``--stop-after-min`` deadline leaves of it."""
     width = max([28, *(len(p.label) for p in plans)])
@@ -58,10 +58,10 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0)
     rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "
                 f"{recorded} recorded in committed records, {rerun}")
     rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
-                f"about {estimated_wall_seconds(plans, jobs) / 3600:.1f} h wall with {jobs} parallel job(s), "
-                f"trials started in the launch queue's order")
+                f"about {estimated_wall_seconds(plans, jobs, order) / 3600:.1f} h wall with {jobs} parallel job(s), "
+                f"trials started in the launch queue's order ({order} estimated time left first)")
     if stop_after_min > 0:
-        rows += deadline_outlook(plans, jobs, stop_after_min)
+        rows += deadline_outlook(plans, jobs, stop_after_min, order)
     if unknown:
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
@@ -166,6 +166,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="local: one trial at a time; joblib: --jobs trials at a time, the next pending trial "
                              "of any preset starting as soon as one ends; slurm: submitit")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel trials with --launcher joblib")
+    parser.add_argument("--queue-order", choices=QUEUE_ORDERS, default="shortest",
+                        help="which pending trial the queue starts next (local, joblib): the least estimated "
+                             "time left (default: trials end, and are recorded, soonest) or the longest (the "
+                             "queue as a whole ends soonest: for a campaign whose verdict needs every trial)")
     parser.add_argument("--hydra", action="append", default=[], metavar="KEY=VALUE",
                         help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
     parser.add_argument("--only", nargs="+", metavar="PRESET",
@@ -232,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     jobs = args.jobs if args.launcher == "joblib" else 1
     print(f"[reproduce] profile={args.profile} launcher={args.launcher} runs={args.runs}")
-    print(format_plan(plans, jobs, args.stop_after_min), flush=True)
+    print(format_plan(plans, jobs, args.stop_after_min, args.queue_order), flush=True)
     if args.dry_run:
         return 0
     overrides = launcher_overrides(args.launcher, args.hydra)
@@ -240,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         with sigterm_raises():  # SIGTERM to reproduce alone reaches the trials it started (launch.run_queue)
             failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs,
                                per_trial=args.launcher != "slurm", time_limit_min=args.time_limit_min,
-                               stop_after_min=args.stop_after_min)
+                               stop_after_min=args.stop_after_min, order=args.queue_order)
             failed += film_policies(plans)
     except KeyboardInterrupt:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "
