@@ -43,6 +43,21 @@ def test_time_limit_stops_when_the_longest_interval_would_pass_it() -> None:
     assert limit.stop_after_checkpoint()
 
 
+def test_time_limit_forgets_an_interval_that_does_not_come_back() -> None:
+    """A fresh DBC run's burst of init_steps updates: one long interval (1200 s), then short ones
+    (150 s). While the burst is among the last RECENT_INTERVALS it counts (at 2550 s: 2550 + 1200
+    would pass 3600); one short interval later it no longer does (2700 + 150)."""
+    clock = FakeClock()
+    limit = TimeLimit(60.0, now=clock)  # 3600 s
+    clock.t = 1200.0
+    stops = [limit.stop_after_checkpoint()]
+    for _ in range(TimeLimit.RECENT_INTERVALS):
+        clock.t += 150.0
+        stops.append(limit.stop_after_checkpoint())
+    assert stops == [False] * 9 + [True, False]
+    assert clock.t == 2700.0
+
+
 def test_no_limit_never_stops() -> None:
     clock = FakeClock()
     limit = TimeLimit(0.0, now=clock)
