@@ -98,6 +98,25 @@ def test_fresh_clone_regenerates_the_same_tables_from_records(quick_runs: Path, 
     assert any("config differs" in g for g in statuses["claims"].gaps), "the smoke run is reported, not used"
 
 
+def test_records_only_ignores_the_runs_dir(quick_runs: Path, tmp_path: Path) -> None:
+    """``--records-only``: the tables of the records alone with a smoke run beside them, which is
+    neither used nor reported; the README says the runs dir was not read."""
+    from plls_bench.report.__main__ import main as report_main
+
+    clone = tmp_path / "results"
+    export_records(quick_runs / "runs", clone / "records")
+    smoke, cfg = make_run(clone / "runs", "mountaincar_ppo", 0, budget="smoke")
+    finish(smoke, cfg)
+    from_records, records_only = tmp_path / "from_records", tmp_path / "records_only"
+    render_all(None, from_records, only=list(TABLES), records_dir=clone / "records")
+    assert report_main(["--runs", str(clone / "runs"), "--records-only", "--out", str(records_only),
+                        "--only", *TABLES, "--no-progress"]) == 0
+    assert _tables(records_only) == _tables(from_records)
+    readme = (records_only / "README.md").read_text()
+    assert "Runs dir: not read (`--records-only`)" in readme
+    assert str(clone / "runs") not in readme and "config differs" not in readme
+
+
 def test_a_local_run_replaces_its_record(quick_runs: Path, tmp_path: Path) -> None:
     clone = tmp_path / "results"
     export_records(quick_runs / "runs", clone / "records")

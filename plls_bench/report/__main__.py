@@ -1,4 +1,4 @@
-"""``python -m plls_bench.report [--runs results/runs] [--records DIR] [--out results] [--only ID ...] [--list]``
+"""``python -m plls_bench.report [--runs results/runs | --records-only] [--records DIR] [--out results] [--only ID ...] [--list]``
 
 Regenerates every table and figure of the paper from run directories (see ``registry.py``).
 Exit status: 0 when every id rendered (gaps are reported, not errors), 1 when an id failed to
@@ -32,7 +32,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", default="results/runs", help="root of the run directories (read only)")
     parser.add_argument("--records", default=None,
                         help="committed run records read beside the runs (default: 'records' beside --runs)")
-    parser.add_argument("--no-records", action="store_true", help="read the runs dir only")
+    sources = parser.add_mutually_exclusive_group()
+    sources.add_argument("--no-records", action="store_true", help="read the runs dir only")
+    sources.add_argument("--records-only", action="store_true",
+                         help="read the committed records only, not the runs dir: results/ as a fresh clone regenerates it")
     parser.add_argument("--out", default="results", help="where tables/, figures/, index.json and README.md go")
     parser.add_argument("--only", nargs="+", metavar="ID", help="regenerate only these ids (see --list)")
     parser.add_argument("--list", action="store_true", help="print the registry and exit")
@@ -47,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     command = shlex.join(["python", "-m", "plls_bench.report", *(sys.argv[1:] if argv is None else argv)])
     try:
         records = None if args.no_records else (args.records or records_dir_for(args.runs))
-        statuses = render_all(args.runs, args.out, args.only, args.x_axis, args.paper,
+        statuses = render_all(None if args.records_only else args.runs, args.out, args.only, args.x_axis, args.paper,
                               progress=not args.no_progress, command=command, records_dir=records)
     except ReportError as err:
         print(f"plls_bench.report: {err}", file=sys.stderr)

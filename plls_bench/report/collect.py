@@ -31,14 +31,16 @@ class ReportError(ValueError):
     """Bad collector input (paths, ids, axis); raised before anything is read or written."""
 
 
-def check_inputs(runs_dir: Path, out_dir: Path, only: Iterable[str] | None, x_axis: str, paper_dir: Path,
+def check_inputs(runs_dir: Path | None, out_dir: Path, only: Iterable[str] | None, x_axis: str, paper_dir: Path,
                  records_dir: Path | None = None) -> None:
-    """One clear error for bad input, before any compute or write."""
-    if not runs_dir.is_dir() and not (records_dir is not None and records_dir.is_dir()):
+    """One clear error for bad input, before any compute or write. ``runs_dir`` None: records only."""
+    if runs_dir is None:
+        if records_dir is None or not records_dir.is_dir():
+            raise ReportError(f"--records-only: no records at {records_dir}")
+    elif not runs_dir.is_dir() and not (records_dir is not None and records_dir.is_dir()):
         raise ReportError(f"--runs {runs_dir}: no such directory"
                           + (f" (and no records at {records_dir})" if records_dir is not None else ""))
-    runs, out = runs_dir.resolve(), out_dir.resolve()
-    if out == runs or runs in out.parents:
+    elif out_dir.resolve() == runs_dir.resolve() or runs_dir.resolve() in out_dir.resolve().parents:
         raise ReportError(f"--out {out_dir} lies inside --runs {runs_dir}: the collector never writes there")
     unknown = sorted(set(only or ()) - set(BY_ID))
     if unknown:
@@ -74,7 +76,7 @@ def write_output(entry: Entry, output: Output, out_dir: Path) -> list[str]:
     return [str(p.relative_to(out_dir)) for p in paths]
 
 
-def render_one(entry: Entry, runs_dir: Path, out_dir: Path, opts: Options,
+def render_one(entry: Entry, runs_dir: Path | None, out_dir: Path, opts: Options,
                records_dir: Path | None = None) -> IdStatus:
     """Build and write one id; a failure is recorded in its status, never raised."""
     runs = Runs(runs_dir, records_dir)
@@ -92,14 +94,16 @@ def render_one(entry: Entry, runs_dir: Path, out_dir: Path, opts: Options,
     return status
 
 
-def render_all(runs_dir: str | Path, out_dir: str | Path, only: Iterable[str] | None = None,
+def render_all(runs_dir: str | Path | None, out_dir: str | Path, only: Iterable[str] | None = None,
                x_axis: str = "iteration", paper_dir: str | Path = PAPER_DIR,
                progress: bool = False, command: str = "",
                records_dir: str | Path | None = None) -> dict[str, IdStatus]:
     """Render every registry id (or ``only`` those) from the runs and, when given, the committed
     records, and regenerate ``index.json`` and ``README.md``; returns the status of each id
-    rendered. The integration test's entry point."""
-    runs_dir, out_dir, paper_dir = Path(runs_dir), Path(out_dir), Path(paper_dir)
+    rendered. ``runs_dir`` None reads the records alone, as a fresh clone has them. The
+    integration test's entry point."""
+    runs_dir = None if runs_dir is None else Path(runs_dir)
+    out_dir, paper_dir = Path(out_dir), Path(paper_dir)
     records = None if records_dir is None else Path(records_dir)
     only = list(only) if only else None
     check_inputs(runs_dir, out_dir, only, x_axis, paper_dir, records)
@@ -108,7 +112,7 @@ def render_all(runs_dir: str | Path, out_dir: str | Path, only: Iterable[str] | 
     bar = progress_bar(entries, disable=not progress, desc="report")
     rendered = {entry.id: render_one(entry, runs_dir, out_dir, opts, records) for entry in bar}
     index = _merge_index(out_dir / "index.json", rendered)
-    meta = {"runs": str(runs_dir), "records": None if records is None else str(records), "x_axis": x_axis,
+    meta = {"runs": None if runs_dir is None else str(runs_dir), "records": None if records is None else str(records), "x_axis": x_axis,
             "command": command}
     atomic_write_json(out_dir / "index.json", {"meta": meta, "ids": [asdict(s) for s in index]})
     write_readme(out_dir, runs_dir, index, meta)

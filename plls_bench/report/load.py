@@ -112,8 +112,8 @@ class Experiment:
 class Runs:
     """A read-only view of a runs dir that records every gap it meets."""
 
-    def __init__(self, runs_dir: str | Path, records_dir: str | Path | None = None) -> None:
-        self.root = Path(runs_dir)
+    def __init__(self, runs_dir: str | Path | None, records_dir: str | Path | None = None) -> None:
+        self.root = None if runs_dir is None else Path(runs_dir)  # None: the records alone
         self.records_root = None if records_dir is None else Path(records_dir)
         self.gaps: list[Gap] = []
         self._experiments: dict[tuple[str, str], Experiment] = {}
@@ -136,11 +136,12 @@ class Runs:
     def _scan(self, name: str, variant: str) -> Experiment:
         exp = Experiment(name, variant)
         variants = variant_dirs(variant)
-        roots = [(self.root / name / v, "run") for v in variants]
-        if self.records_root is not None:
-            roots += [(self.records_root / name / v, "record") for v in variants]
+        sources = [(base, kind) for base, kind in ((self.root, "run"), (self.records_root, "record"))
+                   if base is not None]
+        roots = [(base / name / v, kind) for base, kind in sources for v in variants]
         if not any(root.is_dir() for root, _ in roots):
-            self.gap(exp, None, f"no runs (expected {roots[0][0]})")
+            expected = " or ".join(str(base / name / variants[0]) for base, _ in sources)
+            self.gap(exp, None, f"no runs (expected {expected})")
             return exp
         candidates, seen = [], set()
         for root, source in roots:

@@ -22,12 +22,12 @@ COLLECTOR_PATHS = ("plls_bench", "results/paper")
 STATUSES = ("ok", "partial", "empty", "error")  # partial = drawn, with gaps; empty = nothing to draw
 
 
-def _runs_summary(runs_dir: Path, records_dir: Path | None = None) -> list[str]:
+def _runs_summary(runs_dir: Path | None, records_dir: Path | None = None) -> list[str]:
     """Budget profiles and producing commits of every run dir and committed record (read-only)."""
     budgets: Counter[str] = Counter()
     commits: Counter[str] = Counter()
     updated: list[str] = []  # status.json times (ISO 8601, UTC): the newest is the evidence's date
-    roots = [runs_dir] + ([records_dir] if records_dir is not None else [])
+    roots = [root for root in (runs_dir, records_dir) if root is not None]
     seen: set[Path] = set()  # a run and its record are one run
     for root, path in ((root, p) for root in roots for p in iter_run_dirs(root)):
         if path.relative_to(root) in seen:
@@ -78,7 +78,7 @@ def _figure_section(status: IdStatus) -> list[str]:
     return [*_header(status), image, "", f"Files: {_files(status, 'png', 'pdf', 'csv')}", "", *_gaps(status), ""]
 
 
-def build_readme(out_dir: Path, runs_dir: Path, index: list[IdStatus], meta: dict[str, Any]) -> str:
+def build_readme(out_dir: Path, runs_dir: Path | None, index: list[IdStatus], meta: dict[str, Any]) -> str:
     git = git_state(paths=COLLECTOR_PATHS)
     counts = Counter(s.status for s in index)
     lines = ["# Results", "",
@@ -86,7 +86,7 @@ def build_readme(out_dir: Path, runs_dir: Path, index: list[IdStatus], meta: dic
              f"- Collector: `{git['git_sha'] or 'unknown'}`, the last commit to change "
              + " or ".join(f"`{p}/`" for p in COLLECTOR_PATHS)
              + (" (they have uncommitted changes)" if git["git_dirty"] else ""),
-             f"- Runs dir: `{runs_dir}`; committed records: `{meta.get('records') or 'not read'}`; "
+             f"- Runs dir: {'not read (`--records-only`)' if runs_dir is None else f'`{runs_dir}`'}; committed records: `{meta.get('records') or 'not read'}`; "
              f"curves drawn against `{meta['x_axis']}`",
              *_runs_summary(runs_dir, Path(meta["records"]) if meta.get("records") else None),
              f"- Ids: {len(index)}: " + ", ".join(f"{counts.get(s, 0)} {s}" for s in STATUSES)
@@ -107,5 +107,5 @@ def build_readme(out_dir: Path, runs_dir: Path, index: list[IdStatus], meta: dic
     return "\n".join(lines)
 
 
-def write_readme(out_dir: Path, runs_dir: Path, index: list[IdStatus], meta: dict[str, Any]) -> None:
+def write_readme(out_dir: Path, runs_dir: Path | None, index: list[IdStatus], meta: dict[str, Any]) -> None:
     atomic_write_bytes(out_dir / "README.md", build_readme(out_dir, runs_dir, index, meta).encode())
