@@ -26,43 +26,44 @@ class FakeClock:
         return self.t
 
 
-def test_time_limit_stops_when_the_longest_interval_would_pass_it() -> None:
-    """The longest interval so far, not the last: DBC's interval with an evaluation (here 200 s)
-    comes back after short ones that end an episode (50 s, 20 s)."""
+def test_time_limit_stops_when_an_interval_with_an_evaluation_would_pass_it() -> None:
+    """The last interval of each kind, not the last interval: DBC's interval with an evaluation
+    (here 200 s) comes back after short ones that only end an episode (50 s, 20 s)."""
     clock = FakeClock()
     limit = TimeLimit(10.0, now=clock)  # 600 s
     clock.t = 100.0  # set-up and restore
     limit.mark()
-    clock.t = 300.0  # first checkpoint: 300 s in, the interval took 200 s -> next ends by 500
-    assert not limit.stop_after_checkpoint()
-    clock.t = 350.0  # interval 50 s, the longest still 200 -> by 550
-    assert not limit.stop_after_checkpoint()
+    clock.t = 300.0  # first checkpoint, after an evaluation: 300 s in, 200 s -> next ends by 500
+    assert not limit.stop_after_checkpoint(evaluated=True)
+    clock.t = 350.0  # 50 s without, the evaluated one still 200 -> by 550
+    assert not limit.stop_after_checkpoint(evaluated=False)
     clock.t = 400.0  # by 600, not past the limit
-    assert not limit.stop_after_checkpoint()
-    clock.t = 420.0  # interval 20 s alone would end by 440, but an interval of 200 would end at 620
-    assert limit.stop_after_checkpoint()
+    assert not limit.stop_after_checkpoint(evaluated=False)
+    clock.t = 420.0  # 20 s alone would end by 440, but an interval with an evaluation would end at 620
+    assert limit.stop_after_checkpoint(evaluated=False)
 
 
 def test_time_limit_forgets_an_interval_that_does_not_come_back() -> None:
-    """A fresh DBC run's burst of init_steps updates: one long interval (1200 s), then short ones
-    (150 s). While the burst is among the last RECENT_INTERVALS it counts (at 2550 s: 2550 + 1200
-    would pass 3600); one short interval later it no longer does (2700 + 150)."""
+    """A fresh DBC run's burst of init_steps updates: one long interval without an evaluation
+    (1200 s), then short ones (150 s) and one with an evaluation (400 s). The burst counts until the
+    next interval of its kind replaces it; the one with an evaluation keeps counting after shorter
+    ones, for any evaluation cadence."""
     clock = FakeClock()
-    limit = TimeLimit(60.0, now=clock)  # 3600 s
-    clock.t = 1200.0
-    stops = [limit.stop_after_checkpoint()]
-    for _ in range(TimeLimit.RECENT_INTERVALS):
-        clock.t += 150.0
-        stops.append(limit.stop_after_checkpoint())
-    assert stops == [False] * 9 + [True, False]
-    assert clock.t == 2700.0
+    limit = TimeLimit(40.0, now=clock)  # 2400 s
+    for t, evaluated, stop in ((1000.0, False, False),  # 1000 + 1000 by 2000
+                               (1150.0, False, False),  # the burst forgotten: 1150 + 150
+                               (1550.0, True, False),   # 1550 + 400 by 1950
+                               (1700.0, False, False),  # 1700 + 400 by 2100
+                               (2050.0, False, True)):  # 2050 + 400 would pass 2400, though 150 s would not
+        clock.t = t
+        assert limit.stop_after_checkpoint(evaluated=evaluated) is stop, t
 
 
 def test_no_limit_never_stops() -> None:
     clock = FakeClock()
     limit = TimeLimit(0.0, now=clock)
     clock.t = 1e9
-    assert not limit.stop_after_checkpoint()
+    assert not limit.stop_after_checkpoint(evaluated=True)
 
 
 def test_negative_time_limit_is_refused_naming_the_key(runs_dir: Path) -> None:

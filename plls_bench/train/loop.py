@@ -15,14 +15,13 @@ without duplicates.
 
 ``time_limit_min`` (0: none) ends a run early, at a checkpoint, for cluster jobs with a wall-clock
 limit and compute spread over sessions: after each checkpoint the loop stops if this process's
-training time plus the longest of its recent checkpoint intervals would pass the limit, and raises
+training time plus its longest recent checkpoint interval (:class:`TimeLimit`) would pass the limit, and raises
 :class:`TimeLimitReached`; the runner leaves the run ``stopped`` and the next launch resumes it.
 Nothing past the checkpoint is lost, unlike a job killed at its limit.
 """
 from __future__ import annotations
 
 import time
-from collections import deque
 from dataclasses import dataclass, replace
 from typing import Any, Callable, Protocol
 
@@ -61,30 +60,29 @@ class TimeLimitReached(Exception):
 
 
 class TimeLimit:
-    """Whether to stop after a checkpoint: this process's training time plus the longest of the last
-    RECENT_INTERVALS checkpoint intervals would pass ``limit_min`` minutes (0: never). The longest,
-    not the last: DBC's intervals that hold an evaluation (one in ten episodes on cheetah) are longer
-    than those that only end an episode. Of the recent ones only: a fresh DBC run's burst of
-    ``init_steps`` updates makes one interval of about 20 CPU-minutes that never comes back.
-    Times are ``now()`` seconds."""
-
-    RECENT_INTERVALS = 10
+    """Whether to stop after a checkpoint: this process's training time plus the longer of the last
+    checkpoint interval that held an evaluation and the last that did not would pass ``limit_min``
+    minutes (0: never). Both kinds, whatever the evaluation cadence: DBC's intervals that hold an
+    evaluation (one in ten episodes on cheetah) are longer than those that only end an episode. The
+    last of each kind only: a fresh DBC run's burst of ``init_steps`` updates makes one interval of
+    about 20 CPU-minutes that never comes back. Times are ``now()`` seconds."""
 
     def __init__(self, limit_min: float, now: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s, self.now = 60.0 * limit_min, now
         self.started = self.last_checkpoint = now()
-        self.recent: deque[float] = deque(maxlen=self.RECENT_INTERVALS)
+        self.last_interval: dict[bool, float] = {}  # evaluated or not -> seconds
 
     def mark(self) -> None:
         """Start timing the next checkpoint interval here (set-up and restore time are not one)."""
         self.last_checkpoint = self.now()
 
-    def stop_after_checkpoint(self) -> bool:
-        """Call right after each checkpoint of the training loop."""
+    def stop_after_checkpoint(self, evaluated: bool) -> bool:
+        """Call right after each checkpoint of the training loop; ``evaluated``: the interval held
+        an evaluation."""
         now = self.now()
-        self.recent.append(now - self.last_checkpoint)
+        self.last_interval[evaluated] = now - self.last_checkpoint
         self.last_checkpoint = now
-        return self.limit_s > 0 and (now - self.started) + max(self.recent) > self.limit_s
+        return self.limit_s > 0 and (now - self.started) + max(self.last_interval.values()) > self.limit_s
 
 
 class Trainer(Protocol):
@@ -146,6 +144,7 @@ def train(trainer: Trainer, run: Run, cfg: Config) -> None:
             if restored is None:  # a resumed run's checkpoint came after its point's evaluation
                 at, _ = _point(trainer, run, replace(at, wall_s=clock()), None, clock, bar)
             limit.mark()
+            evaluations_then = at.evaluations  # at the last checkpoint
             while at.iteration < trainer.iterations:
                 at, metrics = trainer.train_iteration(at)
                 at = replace(at, wall_s=clock())
@@ -154,8 +153,12 @@ def train(trainer: Trainer, run: Run, cfg: Config) -> None:
                     run.log("train", row.to_record())
                 at, checkpointed = _point(trainer, run, at, row, clock, bar)
                 bar.update(1)
-                if checkpointed and at.iteration < trainer.iterations and limit.stop_after_checkpoint():
+                if not checkpointed:
+                    continue
+                evaluated = at.evaluations > evaluations_then
+                if at.iteration < trainer.iterations and limit.stop_after_checkpoint(evaluated):
                     raise TimeLimitReached(at, cfg.time_limit_min)
+                evaluations_then = at.evaluations
     finally:
         trainer.close()
 
