@@ -57,7 +57,7 @@ def fill(replay: FrameReplay, env: CountingEnv, steps: int, truth: dict[int, tup
 def check_samples(replay: FrameReplay, truth: dict[int, tuple], n: int = 200) -> None:
     rng = np.random.default_rng(0)
     slots = replay.sample_indices(n, rng)
-    assert (slots >= replay.oldest).all()
+    assert len(slots) == n and (slots >= replay.oldest).all()
     for g, obs, next_obs in zip(slots, replay.stack(slots), replay.stack(slots + 1)):
         true_obs, action, true_next = truth[int(g)]
         assert np.array_equal(obs, true_obs) and np.array_equal(next_obs, true_next)

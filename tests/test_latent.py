@@ -6,7 +6,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from plls_bench.envs import make_vec_env
@@ -155,10 +154,19 @@ def test_pl_ls_carracing_env_with_trained_vs_and_va(runs_dir: Path) -> None:
 
 
 @pytest.mark.slow
-def test_sb3_ppo_learns_through_the_latent_action_wrapper(runs_dir: Path) -> None:
-    cfg = compose_preset(None, runs_dir, "repr/action=vae")
-    venv = wrap_latent(make_vec_env(cfg.env, 2, seed=0), ensure_representations(cfg))
-    model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, n_epochs=1, seed=0, device="cpu")
-    model.learn(total_timesteps=64)
-    assert model.num_timesteps == 64
+def test_sb3_ppo_trains_through_the_latent_action_wrapper(runs_dir: Path) -> None:
+    """The preset's PPO acts in V_a's 3-D latent space, the env receives the decoded 1-D actions
+    inside its bounds, and one update moves the policy."""
+    from plls_bench.train.agent import new_model as new_ppo
+
+    cfg = compose_preset("mountaincar_plls_ppo", runs_dir)
+    recorder = Recorder(make_vec_env(cfg.env, 2, seed=0))
+    venv = wrap_latent(recorder, ensure_representations(cfg))
+    model = new_ppo(cfg, venv)
+    before = [p.detach().clone() for p in model.policy.parameters()]
+    model.learn(total_timesteps=model.n_steps * venv.num_envs)
+    assert model.rollout_buffer.actions.shape[-1] == 3 and recorder.actions.shape == (2, 1)
+    raw = recorder.venv.action_space
+    assert np.all(recorder.actions >= raw.low) and np.all(recorder.actions <= raw.high)
+    assert any(not torch.equal(b, a) for b, a in zip(before, model.policy.parameters())), "no update happened"
     venv.close()

@@ -29,6 +29,7 @@ def test_old_format_synthetic_rows_read_into_the_rows_the_runners_write(experime
     run, cfg = make_run(runs_dir, experiment, seed=0)
     write_eval(run, cfg, [0, 2, 4], [[1.0, 3.0], [2.0, 4.0], [5.0, 7.0]])
     evals, trains = run.read_metrics("eval"), run.read_metrics("train")
+    assert len(evals) == 3 and trains, "the rows written are read back"
     for record in evals:
         row = EvalRow.from_record(record)
         assert row is not None and row.to_record() == record

@@ -44,9 +44,11 @@ def state_vae(runs_dir: Path, *overrides: str) -> StateVAE:
     return StateVAE(cfg.repr.state, cfg.env.image_size, precision=cfg.precision)
 
 
-def dbc_trunk(precision: str = "fp32") -> ConvTrunk:
+def dbc_trunk(runs_dir: Path, *overrides: str) -> ConvTrunk:
+    cfg = compose_preset("cheetah_dbc", runs_dir, *overrides)
     torch.manual_seed(0)
-    return ConvTrunk((9, 84, 84), num_layers=4, num_filters=32, precision=precision)
+    frames = (3 * cfg.env.frame_stack, cfg.env.image_size, cfg.env.image_size)
+    return ConvTrunk(frames, cfg.algo.dbc.num_layers, cfg.algo.dbc.num_filters, precision=cfg.precision)
 
 
 Forward = Callable[[nn.Module, torch.dtype], torch.Tensor]
@@ -63,7 +65,7 @@ def trunks(runs_dir: Path) -> dict[str, tuple[nn.Module, Forward]]:
         "paper_cnn": (ppo_policy(runs_dir).features_extractor, lambda m, t: m(unit.to(t))),
         "V_s.encoder": (state_vae(runs_dir), lambda m, t: torch.cat(m.encode(unit.to(t)), 1)),
         "V_s.decoder": (state_vae(runs_dir), lambda m, t: m.decode(z.to(t))),
-        "dbc.encoder": (dbc_trunk(), lambda m, t: m.convs(stacked.to(t)).flatten(1)),  # ConvTrunk after its / 255
+        "dbc.encoder": (dbc_trunk(runs_dir), lambda m, t: m.convs(stacked.to(t)).flatten(1)),  # ConvTrunk after its / 255
     }
 
 
@@ -158,7 +160,7 @@ def test_bf16_runs_the_trunk_only(name: str, runs_dir: Path, one_torch_thread: N
     built = {"paper_cnn": lambda: ppo_policy(runs_dir, "precision=bf16"),
              "V_s.encoder": lambda: state_vae(runs_dir, "precision=bf16"),
              "V_s.decoder": lambda: state_vae(runs_dir, "precision=bf16"),
-             "dbc.encoder": lambda: dbc_trunk("bf16")}[name]()
+             "dbc.encoder": lambda: dbc_trunk(runs_dir, "precision=bf16")}[name]()
     built = built.features_extractor if name == "paper_cnn" else built
     fp32, forward = trunks(runs_dir)[name]
     built.load_state_dict(fp32.state_dict())
