@@ -209,9 +209,9 @@ def _checkpoints_left(cfg: Config, at: int) -> int:
     if not spec.time_limited:
         return 0
     schedule = Schedule.of(cfg)
-    if spec.checkpoints_at == "episode":  # episodes counted from iteration 0, as a fresh run's are
+    if spec.checkpoints_at == "episode":  # a resumed run starts a fresh episode at ``at``, as a fresh run at 0
         episode = math.ceil(cfg.env.max_episode_steps / schedule.env_steps_per_iteration)
-        return sum(i % episode == 0 or schedule.eval_at(i) for i in range(at + 1, schedule.iterations + 1))
+        return sum((i - at) % episode == 0 or schedule.eval_at(i) for i in range(at + 1, schedule.iterations + 1))
     return schedule.iterations - at
 
 

@@ -51,6 +51,21 @@ def test_the_dry_run_costs_the_evaluations_of_the_schedule(runs_dir: Path) -> No
     assert plan.seconds == pytest.approx(len(plan.trials) * per_trial)
 
 
+def test_a_resumed_dbc_trial_counts_its_episodes_from_the_resume(runs_dir: Path) -> None:
+    """A resumed DBC run starts a fresh training episode, so its episode ends fall every episode
+    after the resume point, not on the fresh run's grid; evaluations stay on theirs."""
+    from plls_bench.plan import _checkpoints_left
+
+    cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
+    schedule = Schedule.of(cfg)
+    episode = cfg.env.max_episode_steps // cfg.env.action_repeat
+    assert _checkpoints_left(cfg, 4 * episode) == schedule.iterations // episode - 4  # at an episode end
+    at = 4 * episode + 100  # resumed from a checkpoint inside an episode
+    ends = set(range(at + episode, schedule.iterations + 1, episode))
+    evaluations = {i for i in range(at + 1, schedule.iterations + 1) if schedule.eval_at(i)}
+    assert evaluations - ends and _checkpoints_left(cfg, at) == len(ends | evaluations)
+
+
 def test_the_dry_run_estimates_each_trials_first_checkpoint(runs_dir: Path) -> None:
     """DBC checkpoints at the end of each training episode and at each evaluation (cheetah's
     evaluations fall on episode ends): a fresh quick trial's first checkpoint comes after one
