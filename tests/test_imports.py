@@ -27,7 +27,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
                     "plls_bench.signals", "plls_bench.metrics", "plls_bench.evaluate")),
     ("config", ("plls_bench.config",)),
     ("run dirs", ("plls_bench.devices", "plls_bench.provenance", "plls_bench.runs", "plls_bench.artifacts",
-                  "plls_bench.composition", "plls_bench.sweeps", "plls_bench.records")),
+                  "plls_bench.composition", "plls_bench.sweeps", "plls_bench.records", "plls_bench.manifest")),
     ("tasks", ("plls_bench.envs", "plls_bench.data", "plls_bench.trunks")),
     ("representations", ("plls_bench.repr", "plls_bench.latent")),
     ("baselines", ("baselines", "baselines.dbc")),
