@@ -12,11 +12,10 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import subprocess
 import sys
 from pathlib import Path
 
-from plls_bench.provenance import REPO_ROOT
+from plls_bench.provenance import REPO_ROOT, _git
 
 # What decides a run's behaviour: the package, its configs, the bench scripts and the bootstrap.
 CODE_PATHS = ("plls_bench", "conf", "bench", "pyproject.toml", "reproduce.sh")
@@ -38,17 +37,16 @@ def write_manifest(repo: Path = REPO_ROOT) -> str:
     ``<blob>\\t<path>`` per file. Refuses when the code has uncommitted changes (the copy would
     hold code the commit does not)."""
     def git(*args: str) -> str:
-        try:
-            return subprocess.run(["git", "-C", str(repo), *args], capture_output=True, text=True,
-                                  check=True).stdout
-        except (OSError, subprocess.CalledProcessError) as err:
-            raise ManifestError(f"{repo} is not a git checkout with a commit: {err}") from err
+        out = _git(repo, *args)  # provenance's runner: None when git or the commit is missing
+        if out is None:
+            raise ManifestError(f"{repo} is not a git checkout with a commit (git {args[0]} failed)")
+        return out
     changed = git("status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS).strip()
     if changed:
         raise ManifestError(f"uncommitted changes to the code: {changed.splitlines()[0].strip()} ...: commit them first")
     rows = [line.split("\t", 1) for line in git("ls-tree", "-r", "HEAD", "--", *CODE_PATHS).splitlines()]
     files = [f"{meta.split()[2]}\t{path}" for meta, path in rows if meta.split()[1] == "blob"]
-    return "\n".join([HEADER + git("rev-parse", "HEAD").strip(), *files]) + "\n"
+    return "\n".join([HEADER + git("rev-parse", "HEAD"), *files]) + "\n"
 
 
 def read_manifest(text: str) -> tuple[str, dict[str, str]]:
