@@ -208,8 +208,8 @@ def _limit_at_start(time_limit_min: float, deadline: float | None,
 
 def _report(plan: PresetPlan, codes: list[int | None], seconds: float) -> list[str]:
     """Print a preset's outcome (a None code: never started, the deadline came first); returns its
-    label if a trial's multirun failed."""
-    bad = [c for c in codes if c not in (0, None)]
+    label if a trial's multirun failed. ``codes``: one per pending trial, or one for all of them."""
+    bad = _failures(plan, codes)
     status = "ok" if not bad else f"FAILED (exit {bad[0]})"
     ran = sum(c is not None for c in codes)
     stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
@@ -221,6 +221,15 @@ def _report(plan: PresetPlan, codes: list[int | None], seconds: float) -> list[s
     print(f"[reproduce] {plan.label}: {status}; ran {ran} trial(s), "
           f"{len(plan.trials) - len(plan.pending)} already done, {seconds:.0f}s{note}", flush=True)
     return [plan.label] if bad else []
+
+
+def _failures(plan: PresetPlan, codes: list[int | None]) -> list[int]:
+    """The non-zero exits that are failures: not those of trials whose status reads ``stopped``
+    (SIGTERM stops a trial at its checkpoint with exit 143; the next launch resumes it)."""
+    if len(codes) != len(plan.pending):  # one multirun for the whole preset: its trials are not told apart
+        return [c for c in codes if c not in (0, None)]
+    return [c for trial, c in zip(plan.pending, codes) if c not in (0, None)
+            and (Run(trial.run_dir).read_status() or {}).get("state") != STATUS_STOPPED]
 
 
 def run_queue(commands: list[tuple[Hashable, Launch]], jobs: int) -> dict[Hashable, int | None]:

@@ -1,19 +1,25 @@
 """The DBC presets end to end at smoke budget, from pixels, through the CLI; SIGKILL and resume."""
 from __future__ import annotations
 
+import copy
 import os
 import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+import torch
 
 from plls_bench.artifacts import load_npz
 from plls_bench.files import read_json, read_jsonl
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
+from plls_bench.train.dbc import DBCTrainer
+from plls_bench.train.loop import Progress
 from tests.conftest import REPO_ROOT, compose_preset
 
 # smoke budget: 400 env steps (100 agent steps at action repeat 4), evaluations every 200
@@ -119,3 +125,38 @@ def test_dbc_settings_are_validated(runs_dir: Path) -> None:
         with pytest.raises(ConfigError, match=key):
             compose_preset("cheetah_dbc", runs_dir, override)
     assert compose_preset("cheetah_dbc", runs_dir, "budget=paper").budget.trials == 5  # Sec. 5.3
+
+
+@pytest.mark.slow
+def test_the_burst_estimate_times_a_copy_and_leaves_the_run_as_it_was(runs_dir: Path) -> None:
+    """Before the burst of ``init_steps`` updates the trainer times updates on a throw-away copy of
+    its agent (loop.TimeLimit): the run's agent, optimisers, sampling generator and torch RNG come
+    out bit for bit as they went in, so a time limit never changes what a run learns."""
+    cfg = compose_preset("cheetah_dbc", runs_dir, "algo.dbc.init_steps=30", "torch_threads=1")
+    trainer = DBCTrainer(cfg, Run(runs_dir / "burst"))
+    trainer.setup()
+    try:
+        trainer.start(Progress(), resumed=False)
+        at = Progress()
+        while at.agent_steps < 30:  # random acting, no update yet
+            at, _ = trainer.train_iteration(at)
+        before = copy.deepcopy(trainer.agent.state_dict()), trainer.rng.bit_generator.state, torch.get_rng_state()
+        seconds = trainer.interval_ahead_s(at)
+        after = trainer.agent.state_dict(), trainer.rng.bit_generator.state, torch.get_rng_state()
+        assert seconds > 0, "init_steps=30 comes before this episode's end"
+        assert trainer.interval_ahead_s(replace(at, agent_steps=31)) == 0.0, "the burst is behind it"
+        assert trainer.interval_ahead_s(replace(at, agent_steps=30 - trainer.episode_steps)) == 0.0, "an episode ahead"
+    finally:
+        trainer.close()
+    assert before[1] == after[1] and torch.equal(before[2], after[2])
+    flat_before, flat_after = _tensors(before[0]), _tensors(after[0])
+    assert flat_before.keys() == flat_after.keys() and len(flat_before) > 50
+    assert all(torch.equal(flat_before[k], flat_after[k]) for k in flat_before)
+
+
+def _tensors(state: Any, prefix: str = "") -> dict[str, torch.Tensor]:
+    """Every tensor of a nested state dict by its path."""
+    if isinstance(state, torch.Tensor):
+        return {prefix: state}
+    items = state.items() if isinstance(state, dict) else enumerate(state) if isinstance(state, (list, tuple)) else ()
+    return {k: v for key, value in items for k, v in _tensors(value, f"{prefix}/{key}").items()}

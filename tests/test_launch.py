@@ -12,6 +12,7 @@ import pytest
 from plls_bench import launch
 from plls_bench.launch import run_queue
 from plls_bench.plan import PresetPlan, Trial
+from plls_bench.runs import STATUS_FAILED, STATUS_STOPPED, Run
 from tests.conftest import REPO_ROOT
 
 
@@ -246,3 +247,19 @@ def test_the_dry_run_names_the_queue_order(tmp_path: Path) -> None:
     bad = subprocess.run([sys.executable, "-m", "plls_bench.reproduce", "--queue-order", "random", "--dry-run",
                           "--runs", str(tmp_path)], cwd=REPO_ROOT, capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "--queue-order: invalid choice: 'random'" in bad.stderr
+
+
+def test_a_trial_stopped_by_sigterm_is_not_a_failed_preset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Exit 143 with status ``stopped`` (SIGTERM at a checkpoint) resumes at the next launch; exit
+    143 with status ``failed``, or any exit of a trial that says nothing, is a failure."""
+    trials = [Trial(seed, tmp_path / f"seed={seed}", done=False, cfg=None) for seed in range(3)]
+    plan = PresetPlan("dbc", "cheetah", "dbc", trials, 100_000)
+    Run(trials[0].run_dir).write_status(STATUS_STOPPED, reason="terminated by signal SIGTERM")
+    assert launch._report(plan, [143, 0, None], 1.0) == []
+    out = capsys.readouterr().out
+    assert "dbc: ok; ran 2 trial(s)" in out and "seed(s) 0 stopped early" in out and "1 not started" in out
+    Run(trials[1].run_dir).write_status(STATUS_FAILED, reason="boom")
+    assert launch._report(plan, [143, 143, 0], 1.0) == ["dbc"]
+    assert "FAILED (exit 143)" in capsys.readouterr().out
+    assert launch._report(plan, [0, 0, 1], 1.0) == ["dbc"], "no status: a failure"
+    assert launch._report(plan, [143], 1.0) == ["dbc"], "one code for the preset: not told apart"

@@ -7,10 +7,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.runs import Run
 from plls_bench.train import loop
-from plls_bench.train.loop import Progress
+from plls_bench.train.loop import Progress, TimeLimitReached
 from tests.conftest import compose_preset
 
 
@@ -22,6 +24,7 @@ class Toy:
 
     def __init__(self, run: Run, crash_at: int | None = None) -> None:
         self.run, self.crash_at, self.calls, self.saved = run, crash_at, [], None
+        self.ahead: dict[int, float] = {}  # iteration -> the trainer's estimate of the interval from there
 
     def setup(self) -> None:
         self.calls.append("setup")
@@ -61,6 +64,9 @@ class Toy:
     def checkpoint(self, at: Progress) -> None:
         self.calls.append(f"checkpoint {at.iteration}")
         self.run.write_bytes("toy.txt", f"{at.iteration} {at.agent_steps} {at.env_steps} {at.evaluations}".encode())
+
+    def interval_ahead_s(self, at: Progress) -> float:
+        return self.ahead.get(at.iteration, 0.0)
 
     def close(self) -> None:
         self.calls.append("close")
@@ -108,3 +114,26 @@ def test_checkpoints_written_before_the_shared_record_restore_as_they_did() -> N
     dbc = {"agent_steps": 100, "env_steps": 400, "episodes": 2, "evaluations": 3, "wall_s": 5.0, "replay_written": 102}
     assert restored_progress(dbc) == Progress(iteration=100, agent_steps=100, wall_s=5.0, env_steps=400,
                                               evaluations=3, episodes=2)
+
+
+def test_a_long_interval_the_trainer_foretells_stops_the_run_before_it(runs_dir: Path) -> None:
+    """DBC's burst of updates: the intervals before it are short, so only the trainer's own
+    estimate can stop the run at the checkpoint before it; a resumed run checks it before its
+    first interval, with no training and nothing written past the checkpoint."""
+    cfg = compose_preset("mountaincar_ppo", runs_dir, "time_limit_min=60")
+    run = Run(runs_dir / "toy")
+    first = Toy(run)
+    first.ahead = {2: 7200.0}  # two hours from iteration 2's checkpoint, over the hour's limit
+    with pytest.raises(TimeLimitReached, match="iteration 2"):
+        loop.train(first, run, cfg)
+    assert first.calls[-2:] == ["checkpoint 2", "close"]
+    again = Toy(run)
+    again.ahead = {2: 7200.0}
+    with pytest.raises(TimeLimitReached, match="iteration 2"):
+        loop.train(again, run, cfg)
+    assert again.calls == ["setup", "restore", "start 2 True", "close"]
+    assert [r["iteration"] for r in run.read_metrics("train")] == [1, 2]
+    unlimited = Toy(run)
+    unlimited.ahead = {2: 7200.0}  # no time limit: never asked, never stops
+    loop.train(unlimited, run, compose_preset("mountaincar_ppo", runs_dir))
+    assert unlimited.calls[-2:] == ["checkpoint 5", "close"]

@@ -59,11 +59,25 @@ def test_time_limit_forgets_an_interval_that_does_not_come_back() -> None:
         assert limit.stop_after_checkpoint(evaluated=evaluated) is stop, t
 
 
+def test_the_trainers_estimate_of_the_next_interval_counts_when_longer() -> None:
+    """DBC's burst after intervals of random acting: 30 s intervals say nothing of it."""
+    clock = FakeClock()
+    limit = TimeLimit(30.0, now=clock)  # 1800 s
+    clock.t = 60.0
+    assert not limit.stop_after_checkpoint(evaluated=False, ahead_s=0.0)
+    clock.t = 90.0  # 30 s interval; the trainer foresees 1500 s: 90 + 1500 < 1800
+    assert not limit.stop_after_checkpoint(evaluated=False, ahead_s=1500.0)
+    clock.t = 400.0  # 400 + 1500 > 1800, though 400 + 310 would not
+    assert limit.stop_after_checkpoint(evaluated=False, ahead_s=1500.0)
+    assert not limit.stop_after_checkpoint(evaluated=False, ahead_s=10.0)  # a shorter estimate: the last intervals
+    assert limit.would_pass(1401.0) and not limit.would_pass(1399.0)
+
+
 def test_no_limit_never_stops() -> None:
     clock = FakeClock()
     limit = TimeLimit(0.0, now=clock)
     clock.t = 1e9
-    assert not limit.stop_after_checkpoint(evaluated=True)
+    assert not limit.stop_after_checkpoint(evaluated=True, ahead_s=1e9) and not limit.would_pass(1e9)
 
 
 def test_negative_time_limit_is_refused_naming_the_key(runs_dir: Path) -> None:

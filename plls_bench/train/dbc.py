@@ -12,6 +12,7 @@ each evaluation and at the end of each training episode (see :mod:`plls_bench.tr
 """
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import time
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from stable_baselines3.common.vec_env import VecEnv
 
 from baselines.dbc import DBCAgent, FrameReplay
@@ -103,9 +105,10 @@ class DBCTrainer:
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))
         self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device, cfg.precision)
+        self.episode_steps = math.ceil(cfg.env.max_episode_steps / cfg.env.action_repeat)  # agent steps
         self.replay = FrameReplay(obs_shape, cfg.env.frame_stack if cfg.env.pixels else 1, self.action_dim,
                                   capacity=min(self.dbc.replay_capacity, self.iterations),
-                                  episode_length=math.ceil(cfg.env.max_episode_steps / cfg.env.action_repeat))
+                                  episode_length=self.episode_steps)
         self.rng = np.random.default_rng(self.seeds.train)
 
     def restore(self) -> Progress | None:
@@ -184,6 +187,35 @@ class DBCTrainer:
         then costs at most an episode of training (a pixel episode is about 4 minutes on one CPU
         core, an evaluation interval about 50), and a resume drops no part of an episode."""
         return evaluated or self.episode_ended
+
+    def interval_ahead_s(self, at: Progress) -> float:
+        """If the burst of ``init_steps`` updates comes before the next episode's end: that many
+        updates plus an episode's, at the speed of one update timed now; else 0 (the last intervals
+        say it). Without this a sitting's deadline could start the burst, about 20 CPU-minutes,
+        after intervals of random acting that took seconds."""
+        init, episode = self.dbc.init_steps, self.episode_steps
+        if not at.agent_steps <= init < at.agent_steps + episode:
+            return 0.0
+        if len(self.replay) == 0:  # init_steps shorter than an episode: nothing to time an update on yet
+            log.info("the burst of %d updates comes before the first episode's end; not timed", init)
+            return 0.0
+        seconds = (init + episode) * self._seconds_per_update()
+        log.info("the next checkpoint interval holds the burst of %d updates: about %.0f s", init, seconds)
+        return seconds
+
+    def _seconds_per_update(self) -> float:
+        """The faster of two updates of a throw-away copy of the agent on one minibatch, sampled with
+        its own generator and under a forked torch RNG: the run's agent and RNG streams stay as
+        they were, so a run with a time limit learns exactly as one without."""
+        probe = copy.deepcopy(self.agent)
+        batch = self.replay.sample(self.dbc.batch_size, np.random.default_rng(0), self.device)
+        timings = []
+        with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
+            for _ in range(2):
+                start = time.perf_counter()
+                probe.update(batch, self.dbc.init_steps)
+                timings.append(time.perf_counter() - start)
+        return min(timings)
 
     def checkpoint(self, at: Progress) -> None:
         save_checkpoint(self.run, self.agent, self.replay, at, self.rng)

@@ -6,6 +6,7 @@
     while iteration < iterations:
         train_iteration -> train row -> evaluate when due -> eval row -> report -> checkpoint when due
         [after a checkpoint: stop if the next one would come after ``time_limit_min``]
+    (before the first interval too, where the trainer foretells a long one)
 
 A trainer builds its env, agent, buffer and logger once in ``setup`` and supplies the steps; this
 module owns their order, resume, the wall clock, the metric rows (:mod:`plls_bench.metrics`) and
@@ -14,8 +15,10 @@ restarted run drops the newer rows and redoes those iterations, so the history e
 without duplicates.
 
 ``time_limit_min`` (0: none) ends a run early, at a checkpoint, for cluster jobs with a wall-clock
-limit and compute spread over sessions: after each checkpoint the loop stops if this process's
-training time plus its longest recent checkpoint interval (:class:`TimeLimit`) would pass the limit, and raises
+limit and compute spread over sessions: before the first interval and after each checkpoint the
+loop stops if this process's time so far plus the next interval's estimate (:class:`TimeLimit`:
+its longest recent checkpoint interval, or the trainer's ``interval_ahead_s`` where it knows the
+next one is longer, as DBC's burst of ``init_steps`` updates) would pass the limit, and raises
 :class:`TimeLimitReached`; the runner leaves the run ``stopped`` and the next launch resumes it.
 Nothing past the checkpoint is lost, unlike a job killed at its limit.
 """
@@ -65,7 +68,8 @@ class TimeLimit:
     minutes (0: never). Both kinds, whatever the evaluation cadence: DBC's intervals that hold an
     evaluation (one in ten episodes on cheetah) are longer than those that only end an episode. The
     last of each kind only: a fresh DBC run's burst of ``init_steps`` updates makes one interval of
-    about 20 CPU-minutes that never comes back. Times are ``now()`` seconds."""
+    about 20 CPU-minutes that never comes back. No interval before it foretells it, so the trainer
+    passes its own estimate of such an interval as ``ahead_s``. Times are ``now()`` seconds."""
 
     def __init__(self, limit_min: float, now: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s, self.now = 60.0 * limit_min, now
@@ -76,13 +80,21 @@ class TimeLimit:
         """Start timing the next checkpoint interval here (set-up and restore time are not one)."""
         self.last_checkpoint = self.now()
 
-    def stop_after_checkpoint(self, evaluated: bool) -> bool:
+    @property
+    def active(self) -> bool:
+        return self.limit_s > 0
+
+    def stop_after_checkpoint(self, evaluated: bool, ahead_s: float = 0.0) -> bool:
         """Call right after each checkpoint of the training loop; ``evaluated``: the interval held
-        an evaluation."""
+        an evaluation; ``ahead_s``: the trainer's estimate of the next interval (0: none)."""
         now = self.now()
         self.last_interval[evaluated] = now - self.last_checkpoint
         self.last_checkpoint = now
-        return self.limit_s > 0 and (now - self.started) + max(self.last_interval.values()) > self.limit_s
+        return self.would_pass(max(*self.last_interval.values(), ahead_s))
+
+    def would_pass(self, next_s: float) -> bool:
+        """Whether an interval of ``next_s`` seconds from now would end past the limit."""
+        return self.active and (self.now() - self.started) + next_s > self.limit_s
 
 
 class Trainer(Protocol):
@@ -111,6 +123,10 @@ class Trainer(Protocol):
         """Hand the iteration's rows to the trainer's own loggers (before its checkpoint)."""
 
     def checkpoint_due(self, at: Progress, evaluated: bool) -> bool: ...
+
+    def interval_ahead_s(self, at: Progress) -> float:
+        """Seconds the checkpoint interval from ``at`` will take, where the trainer knows it is
+        longer than the last ones (DBC's burst of updates); 0 otherwise. Asked under a time limit only."""
 
     def checkpoint(self, at: Progress) -> None: ...
 
@@ -144,6 +160,10 @@ def train(trainer: Trainer, run: Run, cfg: Config) -> None:
             if restored is None:  # a resumed run's checkpoint came after its point's evaluation
                 at, _ = _point(trainer, run, replace(at, wall_s=clock()), None, clock, bar)
             limit.mark()
+            # only a foretold interval stops a run before its first: each launch makes progress otherwise
+            ahead = trainer.interval_ahead_s(at) if limit.active and at.iteration < trainer.iterations else 0.0
+            if ahead > 0 and limit.would_pass(ahead):
+                raise TimeLimitReached(at, cfg.time_limit_min)
             evaluations_then = at.evaluations  # at the last checkpoint
             while at.iteration < trainer.iterations:
                 at, metrics = trainer.train_iteration(at)
@@ -156,7 +176,8 @@ def train(trainer: Trainer, run: Run, cfg: Config) -> None:
                 if not checkpointed:
                     continue
                 evaluated = at.evaluations > evaluations_then
-                if at.iteration < trainer.iterations and limit.stop_after_checkpoint(evaluated):
+                ahead = trainer.interval_ahead_s(at) if limit.active else 0.0
+                if at.iteration < trainer.iterations and limit.stop_after_checkpoint(evaluated, ahead):
                     raise TimeLimitReached(at, cfg.time_limit_min)
                 evaluations_then = at.evaluations
     finally:
