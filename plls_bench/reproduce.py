@@ -34,6 +34,7 @@ LAUNCHERS = ("local", "joblib", "slurm")
 # Smoke numbers check the pipeline, not the paper: the committed results/ is written only from
 # records or runs of a real profile, and a smoke run's collector writes a git-ignored folder.
 RESULTS_OUT, SMOKE_OUT = "results", "results/smoke"
+DEFAULT_RUNS = "results/runs"
 EXIT_INTERRUPTED = 130
 
 
@@ -158,6 +159,19 @@ def collect_results(runs_dir: str, out_dir: str) -> int:
     return subprocess.run(command).returncode
 
 
+def records_line(runs_dir: str) -> str:
+    """Which committed records a launch counts: those beside ``--runs`` only (``records_dir_for``),
+    so a runs dir elsewhere (a cluster's scratch) is told when the checkout's records go unread."""
+    records, checkout = records_dir_for(runs_dir), records_dir_for(DEFAULT_RUNS)
+    if records.is_dir():
+        return f"[reproduce] records: {records} (trials and V_s / V_a recorded there count as done)"
+    line = f"[reproduce] records: none at {records}, so every pending trial and V_s / V_a is built anew"
+    if checkout.is_dir() and checkout.resolve() != records.resolve():
+        line += (f"; the records under {checkout} are not read (records are read beside --runs): "
+                 f"`ln -s {checkout.resolve()} {records}` counts them")
+    return line
+
+
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="reproduce.sh", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -190,7 +204,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                              "gets the time left as its time limit when it starts, so learners stop at a "
                              "checkpoint by then (status stopped; the next launch resumes them); for a "
                              "sitting of known length (default 0: none; not with --launcher slurm)")
-    parser.add_argument("--runs", default="results/runs", help="root of run directories")
+    parser.add_argument("--runs", default=DEFAULT_RUNS, help="root of run directories; the committed records "
+                        "read and written are those beside it (results/runs -> results/records)")
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
                              f"--profile smoke, git-ignored; else {RESULTS_OUT}, the committed results)")
@@ -236,6 +251,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     jobs = args.jobs if args.launcher == "joblib" else 1
     print(f"[reproduce] profile={args.profile} launcher={args.launcher} runs={args.runs}")
+    print(records_line(args.runs))
     print(format_plan(plans, jobs, args.stop_after_min, args.queue_order), flush=True)
     if args.dry_run:
         return 0

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from plls_bench.plan import list_presets, plan_profile, rate_machines
+from plls_bench.reproduce import records_line
 from plls_bench.runner import execute
 from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path
 
@@ -200,3 +201,21 @@ def _job_pid(*needles: str) -> int:
         if "plls_bench" in cmdline and all(any(n in part for part in cmdline) for n in needles):
             return int(proc_dir.name)
     raise AssertionError(f"no job with {needles}")
+
+
+def test_a_runs_dir_elsewhere_is_told_the_checkout_s_records_go_unread(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """Records are read beside --runs: a runs dir on a cluster's scratch would rebuild every
+    recorded trial, so the launch says so and how to count them (a link beside it)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "results" / "records").mkdir(parents=True)
+    scratch = tmp_path / "scratch" / "runs"
+    line = records_line(str(scratch))
+    assert "records: none at" in line and "results/records are not read" in line, line
+    assert f"ln -s {tmp_path / 'results' / 'records'} {tmp_path / 'scratch' / 'records'}" in line
+    (tmp_path / "scratch").mkdir()
+    (tmp_path / "scratch" / "records").symlink_to(tmp_path / "results" / "records")
+    assert "count as done" in records_line(str(scratch))
+    assert "count as done" in records_line("results/runs")
+    (tmp_path / "results" / "records").rmdir()
+    assert "not read" not in records_line(str(tmp_path / "elsewhere" / "runs")), "no records in the checkout: no hint"
