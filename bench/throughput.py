@@ -44,7 +44,8 @@ from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS, Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
 from plls_bench.files import atomic_write_json
-from plls_bench.plan import THROUGHPUT_FILE, list_presets, rate_keys as plan_rate_keys  # noqa: E402
+from plls_bench.plan import list_presets  # noqa: E402
+from plls_bench.rates import THROUGHPUT_FILE, rate_keys as plan_rate_keys  # noqa: E402
 from plls_bench.runner_specs import runner_spec  # noqa: E402
 
 SECTION = "throughput"
@@ -143,7 +144,7 @@ def _dbc(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[s
 
 
 class Measurement(NamedTuple):
-    """How one kind of work is timed: one value per rate key of ``kinds`` (``plls_bench.plan.rate_keys``)."""
+    """How one kind of work is timed: one value per rate key of ``kinds`` (``plls_bench.rates.rate_keys``)."""
 
     measure: Callable[[Config, list[str], argparse.Namespace, tuple[str, ...]], list[tuple[float, str]]]
     kinds: tuple[str, ...]  # the rate kinds it gives, in the order ``measure`` returns them

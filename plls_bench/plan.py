@@ -4,16 +4,14 @@ Every preset of a profile is composed exactly as ``python -m plls_bench`` will c
 run dirs and config hashes here are the ones the runner checks: a trial counted as done here is
 one the runner will skip, or one a committed record holds (``plls_bench.records``), which
 ``reproduce`` does not launch. Cost estimates use throughput measured on a reference machine
-(``bench/throughput.json``, written by ``bench/throughput.py``); shared artifacts (datasets,
-representations) are costed once, by the first preset that needs them.
+(:mod:`plls_bench.rates`); shared artifacts (datasets, representations) are costed once, by the
+first preset that needs them.
 """
 from __future__ import annotations
 
 import dataclasses
 import fnmatch
-import json
 import math
-from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,16 +19,15 @@ from typing import Any
 from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
+from plls_bench.rates import load_rates, rate_keys
 from plls_bench.records.layout import (is_recorded, partial_iteration, partial_record, recorded_artifact,
                                        records_dir_for)
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
 from plls_bench.hashing import stable_hash
-from plls_bench.runs import Run, backend_tag, config_hash, run_dir_path, variant_name, variant_overrides
+from plls_bench.runs import Run, config_hash, run_dir_path, variant_name, variant_overrides
 from plls_bench.sweeps import Sweep
 from plls_bench.train.schedule import Schedule
-
-THROUGHPUT_FILE = CONF_DIR.parent / "bench" / "throughput.json"
 
 
 @dataclass(frozen=True)
@@ -100,32 +97,6 @@ def select_presets(presets: list[str], patterns: list[str]) -> list[str]:
             raise ConfigError(f"--only: unknown preset(s) {pattern}; known: {', '.join(presets)}")
         chosen += [name for name in matched if name not in chosen]
     return chosen
-
-
-def load_rates(path: Path = THROUGHPUT_FILE) -> dict[str, float]:
-    """Measured throughputs by key (``collect/<env>``, ``repr_<which>/<env>``, ``train/<preset>``,
-    ``eval/<preset>``, ``study/<preset>``); empty when never measured."""
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-    return {key: float(entry["value"]) for key, entry in data.get("rates", {}).items()}
-
-
-def rate_machines(path: Path = THROUGHPUT_FILE) -> dict[str, int]:
-    """How many measured rates each CPU gave, by the CPU's name in the rate's ``machine`` field
-    (``vm: x86_64, <CPU>, 2 cores, load ...``; "an unnamed CPU" for rates measured before the
-    name was written), most rates first."""
-    try:
-        entries = json.loads(path.read_text()).get("rates", {}).values()
-    except (OSError, ValueError):
-        return {}
-    names: Counter[str] = Counter()
-    for entry in entries:
-        parts = [part.strip() for part in str(entry.get("machine", "")).split(",")]
-        named = len(parts) > 2 and not parts[1].endswith("cores")
-        names[parts[1] if named else "an unnamed CPU"] += 1
-    return dict(names.most_common())
 
 
 def preset_config(experiment: str, profile: str, runs_dir: str, overrides: tuple[str, ...] = ()) -> Config:
@@ -200,6 +171,20 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
     return 0, ""
 
 
+def _burst_share(cfg: Config, at: int) -> float:
+    """The share of a trial's learning left at iteration ``at`` that its runner's one-off burst
+    (``RunnerSpec.burst``: DBC's init_steps updates) adds to its first checkpoint interval; 0 when
+    the burst is not in that interval (a fresh pixel DBC trial checkpoints after its first episode
+    of random acting, so its burst comes later and its time limit stops it before, train/loop.py)."""
+    spec = runner_spec(cfg.runner)
+    if spec.burst is None:
+        return 0.0
+    where, size = spec.burst(cfg)
+    schedule = Schedule.of(cfg)
+    first = math.ceil(cfg.env.max_episode_steps / schedule.env_steps_per_iteration) if spec.checkpoints_at == "episode" else 1
+    return size / (schedule.iterations - at) if at <= where < at + first else 0.0
+
+
 def _checkpoints_left(cfg: Config, at: int) -> int:
     """Checkpoints a time-limited learner resuming at iteration ``at`` (0: fresh) still makes after
     it starts: every iteration, or at the end of each episode of its one env and at each
@@ -221,8 +206,8 @@ def _estimate(plan: PresetPlan, rates: dict[str, float],
     """Seconds of compute of each pending trial by seed (a shared artifact counted once, in the
     first trial that needs it; a trial with a rate never measured has none), the seconds until its
     first stop (time-limited learners: the artifacts it builds first, then its training and
-    evaluations spread evenly over its checkpoints; other trials run to their end, so all of their
-    estimate), and the rate keys with no measured rate."""
+    evaluations spread evenly over its checkpoints, plus a burst its first interval holds; other
+    trials run to their end, so all of their estimate), and the rate keys with no measured rate."""
     per_trial, first_stop, missing = {}, {}, set()
     for trial in plan.pending:
         work = _workload(trial.cfg, costed, trial.remaining)
@@ -236,29 +221,12 @@ def _estimate(plan: PresetPlan, rates: dict[str, float],
             keys = rate_keys(trial.cfg)
             learning = {keys["train"], keys["eval"]}
             upfront = sum(v for key, v in seconds.items() if key not in learning)
-            first_stop[trial.seed] = upfront + sum(seconds[key] for key in learning) / trial.checkpoints
+            learning_s = sum(seconds[key] for key in learning)
+            share = 1.0 / trial.checkpoints + _burst_share(trial.cfg, trial.resumes_at)
+            first_stop[trial.seed] = upfront + learning_s * share
         else:
             first_stop[trial.seed] = per_trial[trial.seed]
     return per_trial, first_stop, sorted(missing)
-
-
-def rate_keys(cfg: Config) -> dict[str, str]:
-    """Every rate key a trial of ``cfg`` can be costed with, by the work it prices: ``collect`` (its
-    dataset), ``repr_state`` / ``repr_action`` (its V_s / V_a), ``train`` and ``eval`` (policy
-    learning and its evaluations), ``run`` (a fixed cost per run). The one place rate keys are
-    built: the plan's costs and ``bench/throughput.py``'s measurements both read them here."""
-    spec, env, preset = runner_spec(cfg.runner), cfg.env.name, cfg.experiment
-    models = [which for which in ("state", "action") if getattr(cfg.repr, which).kind == "vae"]
-    keys = {}
-    if spec.uses_dataset or models:
-        keys["collect"] = f"collect/{env}{rate_suffix(cfg, precision_bound=False)}"
-    for which in models:  # only V_s has conv trunks: V_a's rate does not depend on the precision
-        keys[f"repr_{which}"] = f"repr_{which}/{env}{rate_suffix(cfg, False, which == 'state')}"
-    if spec.trains_policy:
-        keys.update(train=f"train/{preset}{rate_suffix(cfg)}", eval=f"eval/{preset}{rate_suffix(cfg)}")
-    if spec.costs_per_run:
-        keys["run"] = f"{spec.name}/{preset}"
-    return keys
 
 
 def _workload(cfg: Config, costed: set[str], remaining: float = 1.0) -> list[tuple[str, float]]:
@@ -280,16 +248,6 @@ def _workload(cfg: Config, costed: set[str], remaining: float = 1.0) -> list[tup
     if "run" in keys:
         work.append((keys["run"], 1))
     return work
-
-
-def rate_suffix(cfg: Config, env_bound: bool = True, precision_bound: bool = True) -> str:
-    """The one place rate keys get their tags: ``@<backend>`` for env-bound work (collection,
-    training, evaluation) off gymnasium, then ``@<precision>`` for work through conv trunks off
-    fp32 (fp32 keeps the bare keys measured before ``precision`` existed):
-    ``train/carracing_ppo@envpool@bf16``. A bf16 run with no bf16 rate is a missing rate."""
-    tags = [cfg.env.backend] if env_bound and backend_tag(cfg.env.backend) else []
-    tags += [cfg.precision] if precision_bound and cfg.precision != "fp32" else []
-    return "".join(f"@{tag}" for tag in tags)
 
 
 def _eval_env_steps(cfg: Config) -> int:

@@ -23,7 +23,8 @@ from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
 from plls_bench.launch import QUEUE_ORDERS, deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans
-from plls_bench.plan import THROUGHPUT_FILE, PresetPlan, Trial, plan_profile, plan_sweep, rate_machines
+from plls_bench.plan import PresetPlan, Trial, plan_profile, plan_sweep
+from plls_bench.rates import THROUGHPUT_FILE, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, Run, config_hash, variant_overrides

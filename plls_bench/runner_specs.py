@@ -43,7 +43,7 @@ class RunnerSpec:
     # other share a stage, so one launch queue keeps every core busy with all their trials.
     order: int
     # How ``bench/throughput.py`` times its rates for the dry run: the name of one of its
-    # measurements (MEASURES), which gives the rate keys of its kinds (``plan.rate_keys``).
+    # measurements (MEASURES), which gives the rate keys of its kinds (``rates.rate_keys``).
     measure: str
     trains_policy: bool = False                # costed as train + eval env steps (rate kinds train, eval)
     uses_dataset: bool = False                 # reads (building if missing) the task's stored dataset
@@ -66,6 +66,10 @@ class RunnerSpec:
     # one env and at each evaluation; the launch starts none that cannot reach its first checkpoint
     # before the deadline (launch.start_minutes).
     checkpoints_at: CheckpointsAt = "iteration"
+    # A one-off run of extra learning in one iteration, as (iteration, how many iterations' worth):
+    # DBC's burst of init_steps updates. The launch counts it in a first interval that holds it
+    # (plan._burst_share); the trainer foretells it to its time limit (train/loop.py).
+    burst: Callable[["Config"], tuple[int, int]] | None = None
 
     def __post_init__(self) -> None:
         if self.checkpoints_at not in get_args(CheckpointsAt):
@@ -127,6 +131,12 @@ def _dbc_checkpoint() -> ResumeFiles:
     return committed_files
 
 
+def _dbc_burst(cfg: "Config") -> tuple[int, int]:
+    """The reference's init_steps updates at once, in the iteration of agent step init_steps."""
+    assert cfg.algo.dbc is not None
+    return cfg.algo.dbc.init_steps, cfg.algo.dbc.init_steps
+
+
 def _ppo_policy_files() -> PolicyFiles:
     from plls_bench.train.checkpoint import policy_files
     return policy_files
@@ -151,7 +161,7 @@ SPECS: tuple[RunnerSpec, ...] = (
     RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
                load_resume_files=_dbc_checkpoint, time_limited=True,  # pixel DBC's is over MAX_PARTIAL_BYTES
-               checkpoints_at="episode"),
+               checkpoints_at="episode", burst=_dbc_burst),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}
 

@@ -12,7 +12,8 @@ import pytest
 from bench.throughput import MEASURES, rate_keys as bench_rate_keys
 from plls_bench import runner_specs
 from plls_bench.config.runners import RUNNER_CHECKS, validate_ppo
-from plls_bench.plan import plan_profile, rate_keys
+from plls_bench.plan import plan_profile
+from plls_bench.rates import rate_keys
 from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.report.load import Runs

@@ -34,7 +34,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("learners", ("plls_bench.train",)),
     ("analyses", ("plls_bench.analysis",)),
     ("registry", ("plls_bench.runner_specs",)),
-    ("commands", ("plls_bench.runner", "plls_bench.__main__", "plls_bench.plan", "plls_bench.reproduce", "plls_bench.launch",
+    ("commands", ("plls_bench.runner", "plls_bench.__main__", "plls_bench.plan", "plls_bench.rates", "plls_bench.reproduce", "plls_bench.launch",
                   "plls_bench.resolve", "plls_bench.film", "plls_bench.records.export",
                   "plls_bench.records.__main__")),
     ("report", ("plls_bench.report",)),

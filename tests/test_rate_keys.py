@@ -1,4 +1,4 @@
-"""Throughput rate keys per backend and precision: the one suffix builder (``plan.rate_suffix``),
+"""Throughput rate keys per backend and precision: the one suffix builder (``rates.rate_suffix``),
 the keys ``bench/throughput.py`` measures, and the plan's lookup (nothing here is timed)."""
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from bench.throughput import MEASURES, rate_keys
-from plls_bench.plan import plan_profile, rate_suffix
+from plls_bench.plan import plan_profile
+from plls_bench.rates import rate_suffix
 from plls_bench.runner_specs import SPECS
 from tests.conftest import compose_preset
 

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.plan import list_presets, plan_profile, rate_machines
+from plls_bench.plan import list_presets, plan_profile
+from plls_bench.rates import rate_machines
 from plls_bench.reproduce import records_line
 from plls_bench.runner import execute
 from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path

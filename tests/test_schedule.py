@@ -2,6 +2,7 @@
 the evaluations it holds."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -88,7 +89,7 @@ def test_the_dry_run_estimates_each_trials_first_checkpoint(runs_dir: Path) -> N
 def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir: Path) -> None:
     """PL-LS's first trial collects the dataset and trains V_a before any PPO iteration: all of it
     comes before its first checkpoint; the second trial reuses them."""
-    from plls_bench.plan import rate_keys
+    from plls_bench.rates import rate_keys
 
     cfg = compose_preset("mountaincar_plls_ppo", runs_dir, "budget=quick")
     rates = {key: 1.0 for key in rate_keys(cfg).values()}
@@ -103,7 +104,7 @@ def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir:
 
 def test_a_runner_that_runs_to_its_end_first_stops_at_its_end(runs_dir: Path) -> None:
     """Collection has no checkpoint: the launch may start it only with time left for all of it."""
-    from plls_bench.plan import rate_keys
+    from plls_bench.rates import rate_keys
 
     cfg = compose_preset("mountaincar_data", runs_dir, "budget=quick")
     rates = {key: 1.0 for key in rate_keys(cfg).values()}
@@ -111,3 +112,27 @@ def test_a_runner_that_runs_to_its_end_first_stops_at_its_end(runs_dir: Path) ->
     trial = plan.trials[0]
     assert trial.checkpoints == 0 and plan.trial_seconds[0] > 0
     assert plan.first_stop_seconds[0] == plan.trial_seconds[0]
+
+
+def test_a_dbc_trial_resuming_before_its_burst_first_stops_after_it(runs_dir: Path) -> None:
+    """Stop 42's seed 2 resumed at agent step 1000 = init_steps: its first interval holds the burst
+    of 1000 updates, 1000 of its 24,000 iterations' learning, on top of one interval's share.
+    A fresh trial's first interval (an episode of random acting) does not hold it."""
+    from plls_bench.plan import _burst_share
+    from plls_bench.records.layout import PARTIAL_DIR, PARTIAL_MARKER
+    from plls_bench.runs import config_hash
+
+    cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
+    assert [_burst_share(cfg, at) for at in (0, 750, 1001)] == [0.0, 0.0, 0.0]
+    assert _burst_share(cfg, 1000) == pytest.approx(1000 / 24000) and _burst_share(cfg, 751) > 0
+    assert _burst_share(compose_preset("mountaincar_ppo", runs_dir, "budget=quick"), 0) == 0.0
+    marker = runs_dir.parent / "records" / PARTIAL_DIR / "cheetah_dbc" / "default" / "seed=0" / PARTIAL_MARKER
+    marker.parent.mkdir(parents=True)
+    marker.write_text(json.dumps({"config_hash": config_hash(cfg), "iteration": 1000}))
+    rates = {"train/cheetah_dbc": 1.0, "eval/cheetah_dbc": 1.0}
+    plan = plan_profile("quick", str(runs_dir), only=["cheetah_dbc"], rates=rates)[0]
+    resumed, fresh = plan.trials[0], plan.trials[1]
+    assert resumed.resumes_at == 1000 and resumed.resumes_from == "partial record" and fresh.resumes_at == 0
+    share = 1 / resumed.checkpoints + 1000 / 24000
+    assert plan.first_stop_seconds[0] == pytest.approx(plan.trial_seconds[0] * share)
+    assert plan.first_stop_seconds[1] == pytest.approx(plan.trial_seconds[1] / fresh.checkpoints)
