@@ -18,9 +18,10 @@ takes ``--updates`` updates of one loss group on replay minibatches:
 Reported: the latent's std over one fixed held-out batch, averaged over its 50 dimensions
 (``baselines.dbc.bisim.latent_batch_std``), after 0, 1, 2, 5, ... updates; and, before any update,
 what the encoder's LayerNorm sees: the conv features' mean and batch std, and the Linear layer's
-output mean and batch std, also after one update of the critic loss. A ReLU trunk's features are all >= 0 and mostly their common mean, so
-a first Adam step (each weight moves by about ``lr`` in its gradient's sign) can add a large
-output shared by every frame, which the LayerNorm then scales the per-frame part down against.
+output mean and batch std, also after one update of the critic loss. A ReLU trunk's features are
+all >= 0 and mostly their common mean, so a first Adam step (each weight moves by about ``lr`` in
+its gradient's sign) can add a large output shared by every frame, which the LayerNorm then scales
+the per-frame part down against.
 """
 from __future__ import annotations
 

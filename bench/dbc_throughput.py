@@ -15,7 +15,8 @@ on minibatches sampled from the replay filled by the acting phase. ``--layouts``
 is the suite's (every conv trunk runs in its weights' layout, ``plls_bench/trunks.py``);
 ``contiguous`` converts the built agent's modules back before any update, the layout before that
 change. ``--precisions`` sets the top-level ``precision`` key (``bf16``: autocast around the conv
-trunks; DBC failed the bf16 null comparison, so this is speed only). Prints the command and the machine, and rewrites this script's section of ``BENCHMARKS.md``.
+trunks; DBC failed the bf16 null comparison, so this is speed only). Prints the command and the
+machine, and rewrites this script's section of ``BENCHMARKS.md``.
 """
 from __future__ import annotations
 

@@ -190,7 +190,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--only", nargs="+", metavar="PRESET",
                         help="run only these presets (names or globs, e.g. 'mountaincar_*')")
     parser.add_argument("--sweep", metavar="NAME",
-                        help=f"run a declared sweep instead of whole presets (conf/sweep/<name>.yaml: {', '.join(sweep_names())}): "
+                        help="run a declared sweep instead of whole presets "
+                             f"(conf/sweep/<name>.yaml: {', '.join(sweep_names())}): "
                              "its preset's own runs and one variant per other value")
     parser.add_argument("--precision", choices=PRECISIONS, default="fp32",
                         help="conv trunks' precision for every preset (default fp32, every preset's own): "
@@ -210,7 +211,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--out", default=None,
                         help=f"where the results collector writes tables and figures (default: {SMOKE_OUT} for "
                              f"--profile smoke, git-ignored; else {RESULTS_OUT}, the committed results)")
-    parser.add_argument("--no-report", action="store_true", help="run the presets (and, but for --profile smoke, export their records into "
+    parser.add_argument("--no-report", action="store_true",
+                        help="run the presets (and, but for --profile smoke, export their records into "
                              "the records folder beside --runs), not the results collector")
     parser.add_argument("--dry-run", action="store_true", help="print the plan and its estimated cost, run nothing")
     parser.add_argument("--rerun-recorded", action="store_true",

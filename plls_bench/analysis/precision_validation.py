@@ -110,7 +110,8 @@ def machine() -> dict[str, str]:
     units = sorted(f for f in flags if f in {"avx512_bf16", "amx_bf16", "amx_tile", "avx512f"})
     return {"host": platform.node(), "cpu": model, "cores": str(os.cpu_count()),
             "bf16": ("native: " + ", ".join(units)) if "avx512_bf16" in flags or "amx_bf16" in flags
-            else f"none in the CPU flags (no avx512_bf16 / amx_bf16; torch dispatches {torch.backends.cpu.get_cpu_capability()}): bf16 is emulated",
+            else ("none in the CPU flags (no avx512_bf16 / amx_bf16; torch dispatches "
+                  f"{torch.backends.cpu.get_cpu_capability()}): bf16 is emulated"),
             "load": ", ".join(f"{x:.2f}" for x in os.getloadavg()), "torch": torch.__version__,
             "threads": str(torch.get_num_threads())}
 

@@ -112,8 +112,8 @@ def render_all(runs_dir: str | Path | None, out_dir: str | Path, only: Iterable[
     bar = progress_bar(entries, disable=not progress, desc="report")
     rendered = {entry.id: render_one(entry, runs_dir, out_dir, opts, records) for entry in bar}
     index = _merge_index(out_dir / "index.json", rendered)
-    meta = {"runs": None if runs_dir is None else str(runs_dir), "records": None if records is None else str(records), "x_axis": x_axis,
-            "command": command}
+    meta = {"runs": None if runs_dir is None else str(runs_dir), "records": None if records is None else str(records),
+            "x_axis": x_axis, "command": command}
     atomic_write_json(out_dir / "index.json", {"meta": meta, "ids": [asdict(s) for s in index]})
     write_readme(out_dir, runs_dir, index, meta)
     return rendered

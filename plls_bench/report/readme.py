@@ -86,7 +86,8 @@ def build_readme(out_dir: Path, runs_dir: Path | None, index: list[IdStatus], me
              f"- Collector: `{git['git_sha'] or 'unknown'}`, the last commit to change "
              + " or ".join(f"`{p}/`" for p in COLLECTOR_PATHS)
              + (" (they have uncommitted changes)" if git["git_dirty"] else ""),
-             f"- Runs dir: {'not read (`--records-only`)' if runs_dir is None else f'`{runs_dir}`'}; committed records: `{meta.get('records') or 'not read'}`; "
+             f"- Runs dir: {'not read (`--records-only`)' if runs_dir is None else f'`{runs_dir}`'}; "
+             f"committed records: `{meta.get('records') or 'not read'}`; "
              f"curves drawn against `{meta['x_axis']}`",
              *_runs_summary(runs_dir, Path(meta["records"]) if meta.get("records") else None),
              f"- Ids: {len(index)}: " + ", ".join(f"{counts.get(s, 0)} {s}" for s in STATUSES)

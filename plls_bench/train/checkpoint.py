@@ -7,8 +7,9 @@ Layout under ``<run>/checkpoints/``::
     vecnormalize-<iteration>.json  VecNormalize statistics, only with algo.ppo.normalize_*
     latest.json           written last and atomically: the commit point of a checkpoint
 
-``latest.json`` holds the progress (:func:`progress_record`), the RNG states of python, numpy's global generator (SB3 shuffles minibatches with it) and torch
-(action sampling), and names the zip it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
+``latest.json`` holds the progress (:func:`progress_record`), the RNG states of python, numpy's
+global generator (SB3 shuffles minibatches with it) and torch (action sampling), and names the zip
+it belongs to. A kill at any moment leaves the previous ``latest.json`` and its
 zip intact; older files are deleted only after the new ``latest.json`` is in place.
 """
 from __future__ import annotations

@@ -5,8 +5,9 @@ Modules: ``encoder`` (the critic's conv trunk, shared with the actor, and its Li
 LayerNorm), ``actor`` (its own Linear + LayerNorm head and MLP, from the trunk's features),
 ``critic`` (twin Q on ``[z, a]``), ``critic_target`` (Polyak-averaged: not trainable),
 ``transition_model`` (on ``[z, a]``), ``reward_decoder`` and, for PL-LS + DBC, the frozen
-``V_a.decoder``. State SAC (``algo.dbc.encoder=identity``) has only actor, critic and target. Modules whose forward takes several tensors are summarised through a one-input
-adapter that runs the same layers in the same order.
+``V_a.decoder``. State SAC (``algo.dbc.encoder=identity``) has only actor, critic and target.
+Modules whose forward takes several tensors are summarised through a one-input adapter that runs
+the same layers in the same order.
 """
 from __future__ import annotations
 
