@@ -39,7 +39,7 @@ HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant", "time_
 HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
     "algo.ppo.use_sde": False, "algo.ppo.sde_sample_freq": 0,
     "algo.ppo.normalize_obs": False, "algo.ppo.normalize_reward": False,
-    "env.backend": "gymnasium", "precision": "fp32", "algo.dbc.encoder": "bisim",
+    "env.backend": "gymnasium", "precision": "fp32", "algo.dbc.encoder": "bisim", "env.visuals": "stock",
 }
 # Nested keys that change speed, never results (envpool steps each env on its own random stream,
 # whichever thread runs it): always left out of the hash, as torch_threads is.

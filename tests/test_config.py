@@ -175,6 +175,8 @@ BAD_INPUTS = [
     (["+experiment=carracing_ppo_vs", "env.image_size=7"], "env.image_size"),
     (["+experiment=cheetah_dbc", "env.frame_stack=0"], "env.frame_stack"),
     (["+experiment=cheetah_dbc", "env.camera_id=-1"], "env.camera_id"),
+    (["+experiment=cheetah_dbc", "env.visuals=night"], "env.visuals"),
+    (["+experiment=mountaincar_ppo", "env.visuals=dbc_reference"], "env.visuals"),  # restyles dm_control only
     # exploration settings the paper leaves open (algo/exploration, gSDE)
     (["+experiment=mountaincar_ppo", "algo.ppo.sde_sample_freq=-1"], "algo.ppo.sde_sample_freq"),
     (["+experiment=mountaincar_ppo", "algo.ppo.sde_sample_freq=4"], "algo.ppo.sde_sample_freq"),  # without gSDE

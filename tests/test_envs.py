@@ -53,6 +53,37 @@ def test_cheetah_renders_stacked_pixels_and_repeats_actions(runs_dir: Path) -> N
     env.close()
 
 
+def _floor_texture_rgb(env: gym.Env) -> np.ndarray:
+    """The mean colour ``(3,)`` of the model's floor checker texture."""
+    model = env.unwrapped._env.physics.model
+    grid = [model.texture(i).name for i in range(model.ntex)].index("grid")
+    size = model.tex_width[grid] * model.tex_height[grid] * model.tex_nchannel[grid]
+    texels = model.tex_data[model.tex_adr[grid]:model.tex_adr[grid] + size]
+    return texels.reshape(-1, model.tex_nchannel[grid])[:, :3].mean(0)
+
+
+def test_the_dbc_reference_look_restyles_the_floor_and_nothing_else(runs_dir: Path) -> None:
+    """``env.visuals=dbc_reference``: the grey floor checker of the DBC reference's suite copy where
+    dm_control's is blue, the same physics and rewards for the same seed and actions."""
+    stock = make_env(env_cfg("cheetah", runs_dir))
+    styled = make_env(compose_preset(None, runs_dir, "env=cheetah", "env.visuals=dbc_reference").env)
+    try:
+        (obs_stock, _), (obs_styled, _) = stock.reset(seed=3), styled.reset(seed=3)
+        rng = np.random.default_rng(0)
+        for _ in range(5):
+            action = rng.uniform(-1, 1, 6).astype(np.float32)
+            (obs_stock, r_stock, *_), (obs_styled, r_styled, *_) = stock.step(action), styled.step(action)
+            assert r_stock == r_styled
+        qpos = [env.unwrapped._env.physics.data.qpos.copy() for env in (stock, styled)]
+        assert np.array_equal(*qpos) and not np.array_equal(obs_stock, obs_styled)
+        blue, grey = _floor_texture_rgb(stock), _floor_texture_rgb(styled)
+    finally:
+        stock.close()
+        styled.close()
+    assert blue[2] > blue[0] + 30, blue
+    assert np.ptp(grey) < 1 and grey[0] < blue[2], grey
+
+
 def test_cheetah_episode_is_250_agent_steps_at_repeat_4(runs_dir: Path) -> None:
     env = make_env(env_cfg("cheetah", runs_dir), for_data=True)  # state-only: fast
     env.reset(seed=0)

@@ -11,6 +11,9 @@ ENV_NAMES = ("mountaincar", "carracing", "cheetah")
 REPR_KINDS = ("none", "vae")
 DATA_POLICIES = ("uniform", "correlated")
 ENV_BACKENDS = ("gymnasium", "envpool")
+# How a dm_control task looks: its own textures, or the DBC reference code's copy of the suite
+# (plls_bench.envs.dmc.DBC_REFERENCE_LOOK; docs/decisions.md#d22)
+ENV_VISUALS = ("stock", "dbc_reference")
 # gymnasium ids envpool ships (plls_bench.envs.envpool_backend.ENVPOOL_TASKS; kept here so that
 # validating a config never imports the engine)
 ENVPOOL_GYM_IDS = ("CarRacing-v3", "MountainCarContinuous-v0")
@@ -37,6 +40,7 @@ class EnvConfig(Validated):
     data_policy_correlation: float = 0.95
     backend: str = "gymnasium"
     backend_threads: int = 0
+    visuals: str = "stock"
 
     def validate_backend(self) -> None:
         check_choice(self.backend, ENV_BACKENDS, "env.backend")
@@ -55,6 +59,9 @@ class EnvConfig(Validated):
         check_fraction(self.data_train_fraction, "env.data_train_fraction")
         check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
         self.validate_backend()
+        check_choice(self.visuals, ENV_VISUALS, "env.visuals")
+        check(self.visuals == "stock" or self.name == "cheetah", "env.visuals",
+              f"{self.visuals!r} restyles a dm_control task; env.name={self.name} is not one: use env.visuals=stock")
         check(0 <= self.data_policy_correlation < 1, "env.data_policy_correlation",
               f"must be in [0, 1), got {self.data_policy_correlation!r}")
         if self.pixels or self.data_pixels:

@@ -32,7 +32,7 @@ def _cheetah(cfg: EnvConfig, for_data: bool, render_mode: str | None) -> gym.Env
     pixels = cfg.data_pixels if for_data else cfg.pixels
     return DMCEnv(cfg.gym_id, pixels=pixels, image_size=cfg.image_size, camera_id=cfg.camera_id,
                   action_repeat=cfg.action_repeat, frame_stack=cfg.frame_stack,
-                  max_episode_steps=cfg.max_episode_steps, render_mode=render_mode)
+                  max_episode_steps=cfg.max_episode_steps, render_mode=render_mode, visuals=cfg.visuals)
 
 
 ENV_FACTORIES: dict[str, Callable[[EnvConfig, bool, str | None], gym.Env]] = {

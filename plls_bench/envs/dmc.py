@@ -7,6 +7,7 @@ as the DBC reference code does.
 from __future__ import annotations
 
 import logging
+import xml.etree.ElementTree as ElementTree
 from collections import deque
 from typing import Any
 
@@ -29,6 +30,30 @@ class _DropSettotalmass(logging.Filter):
 
 logging.getLogger("absl").addFilter(_DropSettotalmass())
 
+# ``env.visuals=dbc_reference``: the look of the DBC reference code's copy of the suite
+# (facebookresearch/deep_bisim4control, local_dm_control_suite: cheetah.xml includes
+# common/materials_white_floor.xml, a grey floor checker, and common/skybox.xml has black marks
+# where dm_control's are white). Asset file -> texture name -> attributes set on it.
+DBC_REFERENCE_LOOK: dict[str, dict[str, dict[str, str]]] = {
+    "./common/materials.xml": {"grid": {"rgb1": ".1 .1 .1", "rgb2": ".2 .2 .2", "markrgb": ".1 .1 .1"}},
+    "./common/skybox.xml": {"skybox": {"markrgb": "0 0 0"}},
+}
+
+
+def restyled_assets(assets: dict[str, bytes], look: dict[str, dict[str, dict[str, str]]]) -> dict[str, bytes]:
+    """``assets`` (file -> XML) with the textures ``look`` names given its attributes; a texture it
+    names that is missing is an error, so a dm_control release that renames one cannot pass unseen."""
+    styled = dict(assets)
+    for name, textures in look.items():
+        root = ElementTree.fromstring(assets[name])
+        for texture, attributes in textures.items():
+            node = root.find(f".//texture[@name='{texture}']")
+            if node is None:
+                raise KeyError(f"{name} has no texture {texture!r} to restyle")
+            node.attrib.update(attributes)
+        styled[name] = ElementTree.tostring(root)
+    return styled
+
 
 class DMCEnv(gym.Env):
     """``domain-task`` from dm_control's suite with actions in [-1, 1]^n.
@@ -36,16 +61,21 @@ class DMCEnv(gym.Env):
     Observations: ``(3 * frame_stack, size, size)`` uint8 pixels, or the flattened proprioceptive
     state (float32) when ``pixels=False``. An episode ends by truncation after ``max_episode_steps``
     control steps (frames, counting action repeat; ``env.max_episode_steps``), which replaces the
-    task's own time limit (cheetah's: 1000), or at that limit when None.
+    task's own time limit (cheetah's: 1000), or at that limit when None. ``visuals``: ``stock``
+    (dm_control's textures) or ``dbc_reference`` (:data:`DBC_REFERENCE_LOOK`; cheetah only).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 30}
 
     def __init__(self, domain_task: str, *, pixels: bool = True, image_size: int = 84,
                  camera_id: int = 0, action_repeat: int = 1, frame_stack: int = 1,
-                 max_episode_steps: int | None = None, render_mode: str | None = None) -> None:
+                 max_episode_steps: int | None = None, render_mode: str | None = None,
+                 visuals: str = "stock") -> None:
         ensure_mujoco_gl()  # even state-only: importing dm_control initialises a GL backend
         self.domain, self.task = domain_task.split("-", 1)
+        if visuals not in ("stock", "dbc_reference") or (visuals != "stock" and self.domain != "cheetah"):
+            raise ValueError(f"visuals={visuals!r}: stock, or dbc_reference for cheetah")
+        self.visuals = visuals
         self.pixels, self.image_size, self.camera_id = pixels, image_size, camera_id
         self.action_repeat, self.frame_stack = action_repeat, frame_stack
         self.render_mode, self.max_episode_steps, self._steps = render_mode, max_episode_steps, 0
@@ -65,7 +95,15 @@ class DMCEnv(gym.Env):
         from dm_control import suite  # after ensure_mujoco_gl: mujoco reads MUJOCO_GL at import
 
         limit = {} if self.max_episode_steps is None else {"time_limit": float("inf")}  # counted in step
-        return suite.load(self.domain, self.task, task_kwargs={"random": seed, **limit})
+        if self.visuals == "stock":
+            return suite.load(self.domain, self.task, task_kwargs={"random": seed, **limit})
+        from dm_control.rl import control
+        from dm_control.suite import cheetah
+
+        xml, assets = cheetah.get_model_and_assets()  # what suite.load's cheetah.run builds, restyled
+        physics = cheetah.Physics.from_xml_string(xml, restyled_assets(assets, DBC_REFERENCE_LOOK))
+        return control.Environment(physics, cheetah.Cheetah(random=seed),
+                                   time_limit=limit.get("time_limit", cheetah._DEFAULT_TIME_LIMIT))
 
     def _frame(self) -> np.ndarray:
         image = self._env.physics.render(self.image_size, self.image_size, camera_id=self.camera_id)
