@@ -38,7 +38,7 @@ def test_literal_runs_keep_their_config_hash(tmp_path: Path) -> None:
     old = {**config_dict(cfg), "device": "cpu"}  # the default before device=auto
     for key in NEW_PPO_KEYS:
         del old["algo"]["ppo"][key]
-    for key in ("backend", "backend_threads"):  # env keys newer than those runs too
+    for key in ("backend", "backend_threads", "visuals"):  # env keys newer than those runs too
         del old["env"][key]
     del old["precision"]  # newer than those runs too
     old_hash = stable_hash({k: v for k, v in old.items() if k not in HASH_EXCLUDED_KEYS})
