@@ -209,10 +209,10 @@ def _limit_at_start(time_limit_min: float, deadline: float | None,
 def _report(plan: PresetPlan, codes: list[int | None], seconds: float) -> list[str]:
     """Print a preset's outcome (a None code: never started, the deadline came first); returns its
     label if a trial's multirun failed. ``codes``: one per pending trial, or one for all of them."""
-    bad = _failures(plan, codes)
+    stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
+    bad = _failures(plan, codes, set(stopped))
     status = "ok" if not bad else f"FAILED (exit {bad[0]})"
     ran = sum(c is not None for c in codes)
-    stopped = [t.seed for t in plan.pending if (Run(t.run_dir).read_status() or {}).get("state") == STATUS_STOPPED]
     note = (f", seed(s) {', '.join(map(str, stopped))} stopped early (time limit or SIGTERM; run again "
             f"to resume)" if stopped else "")
     if ran < len(codes):
@@ -223,13 +223,13 @@ def _report(plan: PresetPlan, codes: list[int | None], seconds: float) -> list[s
     return [plan.label] if bad else []
 
 
-def _failures(plan: PresetPlan, codes: list[int | None]) -> list[int]:
-    """The non-zero exits that are failures: not those of trials whose status reads ``stopped``
-    (SIGTERM stops a trial at its checkpoint with exit 143; the next launch resumes it)."""
+def _failures(plan: PresetPlan, codes: list[int | None], stopped_seeds: set[int]) -> list[int]:
+    """The non-zero exits that are failures: not those of the trials in ``stopped_seeds``, whose
+    status reads ``stopped`` (SIGTERM stops a trial at its checkpoint with exit 143; the next
+    launch resumes it)."""
     if len(codes) != len(plan.pending):  # one multirun for the whole preset: its trials are not told apart
         return [c for c in codes if c not in (0, None)]
-    return [c for trial, c in zip(plan.pending, codes) if c not in (0, None)
-            and (Run(trial.run_dir).read_status() or {}).get("state") != STATUS_STOPPED]
+    return [c for trial, c in zip(plan.pending, codes) if c not in (0, None) and trial.seed not in stopped_seeds]
 
 
 def run_queue(commands: list[tuple[Hashable, Launch]], jobs: int) -> dict[Hashable, int | None]:

@@ -181,8 +181,14 @@ def _burst_share(cfg: Config, at: int) -> float:
         return 0.0
     where, size = spec.burst(cfg)
     schedule = Schedule.of(cfg)
-    first = math.ceil(cfg.env.max_episode_steps / schedule.env_steps_per_iteration) if spec.checkpoints_at == "episode" else 1
+    first = _episode_iterations(cfg, schedule) if spec.checkpoints_at == "episode" else 1
     return size / (schedule.iterations - at) if at <= where < at + first else 0.0
+
+
+def _episode_iterations(cfg: Config, schedule: Schedule) -> int:
+    """Iterations in one episode of a learner's one env: its checkpoint spacing when it
+    checkpoints at episode ends (``RunnerSpec.checkpoints_at == "episode"``)."""
+    return math.ceil(cfg.env.max_episode_steps / schedule.env_steps_per_iteration)
 
 
 def _checkpoints_left(cfg: Config, at: int) -> int:
@@ -195,7 +201,7 @@ def _checkpoints_left(cfg: Config, at: int) -> int:
         return 0
     schedule = Schedule.of(cfg)
     if spec.checkpoints_at == "episode":  # a resumed run starts a fresh episode at ``at``, as a fresh run at 0
-        episode = math.ceil(cfg.env.max_episode_steps / schedule.env_steps_per_iteration)
+        episode = _episode_iterations(cfg, schedule)
         return sum((i - at) % episode == 0 or schedule.eval_at(i) for i in range(at + 1, schedule.iterations + 1))
     return schedule.iterations - at
 
