@@ -7,7 +7,8 @@ function below), a ``rule`` and ``threshold`` (what counts as reproducing it) an
 95% CI: entirely on the claim's side -> reproduced, entirely on the other -> not reproduced,
 straddling -> inconclusive; below the budget or range -> not run at this budget. A comparison
 that ``requires`` a baseline check (another row: the baseline reaches a published number, or beats
-the random policy) is not made while that check is not reproduced.
+the random policy) is not made while that check is not reproduced, or is itself not made
+(:func:`~plls_bench.report.verdicts.gate_all`).
 
 Stochastic quantities need :data:`~plls_bench.report.matched.MIN_TRIALS` finished trials (per arm),
 and two arms are compared on the evaluations every finished trial of both reaches
@@ -35,8 +36,8 @@ from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_
 from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement
 from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
 from plls_bench.report.sweep_claim import sweep_best
-from plls_bench.report.verdicts import (NOT_MADE, NOT_REPRODUCED, NOT_RUN, REPRODUCED, RULES, VERDICTS, Estimate,
-                                        rule_text, verdict)
+from plls_bench.report.verdicts import (NOT_MADE, NOT_RUN, RULES, VERDICTS, Estimate, Judged, gate_all, rule_text,
+                                        verdict)
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 SCORES = ("final", "auc")  # p_improvement's per-trial score: the final return, or the mean over the curve
@@ -149,7 +150,6 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
 }
 
 
-Judged = tuple[Estimate | None, str, str, str | None]  # judge's (estimate, verdict, reason, budget text)
 
 
 def judge(runs: Runs, claim: dict[str, str]) -> Judged:
@@ -175,20 +175,6 @@ def judge(runs: Runs, claim: dict[str, str]) -> Judged:
         basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
     reason = f"suite value {rule_text(claim)}{basis}"
     return est, verdict(claim["rule"], low, high, float(claim["threshold"]), high_t), reason, est.budget
-
-
-def gated(outcome: str, reason: str, required: str, check: Judged) -> tuple[str, str]:
-    """A comparison's verdict and reason once its baseline check ``required`` is judged (``check``):
-    not made if the check is not reproduced (the comparison's own reading stays in the reason);
-    its own otherwise, noting a check that is not (yet) reproduced."""
-    check_estimate, check_outcome = check[0], check[1]
-    value = f" ({check_estimate.text})" if check_estimate else ""
-    if check_outcome == NOT_REPRODUCED:
-        return NOT_MADE, (f"its baseline check '{required}' is not reproduced{value}; "
-                          f"its own reading: {outcome}, {reason}")
-    if check_outcome == REPRODUCED or check_outcome == outcome == NOT_RUN:  # its reason names what is missing
-        return outcome, reason
-    return outcome, f"{reason}; its baseline check '{required}' is {check_outcome}"
 
 
 def _run_budget(runs: Runs, name: str, kind: str) -> str | None:
@@ -244,7 +230,22 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
             problems.append(f"requires {row['requires']!r} (the claim text of another row)")
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
+    _check_chains(rows, paper_dir)
     return rows
+
+
+def _check_chains(rows: list[dict[str, str]], paper_dir: Path) -> None:
+    """Baseline checks may chain (a row's ``requires`` row requires another), but never back to a row
+    already on the chain: its verdict would wait on itself."""
+    requires = {row["claim"]: row["requires"] for row in rows}
+    for line, row in enumerate(rows, 2):
+        chain, at = [row["claim"]], row["requires"]
+        while at:
+            if at in chain:
+                raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: requires {row['requires']!r} leads back "
+                                 f"to {at!r} (a cycle of baseline checks)")
+            chain.append(at)
+            at = requires[at]
 
 
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
@@ -252,10 +253,10 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     rows, records = [], []
     claims = read_claims(opts.paper_dir)
     judged = {claim["claim"]: judge(runs, claim) for claim in claims}
+    final = gate_all(claims, judged)
     for claim in claims:
-        est, outcome, reason, budget = judged[claim["claim"]]
-        if claim["requires"]:
-            outcome, reason = gated(outcome, reason, claim["requires"], judged[claim["requires"]])
+        est, _, _, budget = judged[claim["claim"]]
+        outcome, reason = final[claim["claim"]]
         rows.append([claim["claim"], claim["paper"], est.text if est else NA, budget or NA,
                      outcome, reason, claim["source"]])
         records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],

@@ -1,5 +1,5 @@
 """A claim's verdict: the suite's interval read against the claim's rule and threshold (the rules
-``results/paper/claims.csv`` may name)."""
+``results/paper/claims.csv`` may name), then against the verdict of the baseline check it requires."""
 from __future__ import annotations
 
 import math
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduced", "inconclusive",
                                                      "not run at this budget")
-# A comparison whose baseline fails its own check (its ``requires`` row is not reproduced): a method
+# A comparison whose baseline fails its own check (its ``requires`` row is not reproduced, or not made): a method
 # beating, or losing to, a baseline that does not learn says nothing about the method.
 NOT_MADE = "not made: baseline fails its check"
 VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN, NOT_MADE)
@@ -23,6 +23,9 @@ class Estimate:
     text: str      # the suite's value as shown
     budget: str    # budgets and trial counts behind it
     reach: float = math.inf  # furthest x the runs reached on the claim's axis
+
+
+Judged = tuple[Estimate | None, str, str, str | None]  # a claim judged: (estimate, verdict, reason, budget text)
 
 
 def verdict(rule: str, low: float, high: float, threshold: float, threshold_high: float = math.nan) -> str:
@@ -44,3 +47,38 @@ def rule_text(claim: dict[str, str]) -> str:
     if claim["rule"] == "between":
         return f"in [{claim['threshold']}, {claim['threshold_high']}]"
     return f"{words[claim['rule']]} {claim['threshold']}"
+
+
+def gated(outcome: str, reason: str, required: str, check_estimate: Estimate | None,
+          check_outcome: str) -> tuple[str, str]:
+    """A comparison's verdict and reason once its baseline check ``required`` is judged: not made if
+    the check is not reproduced, or is itself not made (its own baseline fails); the comparison's own
+    reading stays in the reason. Its own verdict otherwise, noting a check not (yet) reproduced."""
+    value = f" ({check_estimate.text})" if check_estimate else ""
+    if check_outcome in (NOT_REPRODUCED, NOT_MADE):
+        state = "not reproduced" if check_outcome == NOT_REPRODUCED else "not made (its own baseline check fails)"
+        return NOT_MADE, f"its baseline check '{required}' is {state}{value}; its own reading: {outcome}, {reason}"
+    if check_outcome == REPRODUCED or check_outcome == outcome == NOT_RUN:  # its reason names what is missing
+        return outcome, reason
+    return outcome, f"{reason}; its baseline check '{required}' is {check_outcome}"
+
+
+def gate_all(claims: list[dict[str, str]], judged: dict[str, Judged]) -> dict[str, tuple[str, str]]:
+    """Every claim's (verdict, reason) after its baseline checks: a row's ``requires`` may itself
+    require another row, and a comparison reads its check's gated verdict, so a failure anywhere
+    down the chain reaches it (``read_claims`` rejects a chain that leads back to its row)."""
+    requires = {claim["claim"]: claim["requires"] for claim in claims}
+    final: dict[str, tuple[str, str]] = {}
+
+    def resolve(name: str) -> tuple[str, str]:
+        if name not in final:
+            estimate, outcome, reason, _ = judged[name]
+            required = requires[name]
+            if required:
+                outcome, reason = gated(outcome, reason, required, judged[required][0], resolve(required)[0])
+            final[name] = outcome, reason
+        return final[name]
+
+    for name in requires:
+        resolve(name)
+    return final
