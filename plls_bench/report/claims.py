@@ -150,8 +150,6 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
 }
 
 
-
-
 def judge(runs: Runs, claim: dict[str, str]) -> Judged:
     """(estimate, verdict, reason, budget text) for one claim row."""
     budgets = {n: _run_budget(runs, n, claim["kind"]) for n in (claim["experiment"], claim["baseline"]) if n}

@@ -72,7 +72,7 @@ def gate_all(claims: list[dict[str, str]], judged: dict[str, Judged]) -> dict[st
 
     def resolve(name: str) -> tuple[str, str]:
         if name not in final:
-            estimate, outcome, reason, _ = judged[name]
+            _, outcome, reason, _ = judged[name]
             required = requires[name]
             if required:
                 outcome, reason = gated(outcome, reason, required, judged[required][0], resolve(required)[0])
