@@ -10,7 +10,7 @@ import pytest
 
 from plls_bench.files import read_jsonl
 from plls_bench.metrics import EvalRow, TrainRow, parallel_envs
-from plls_bench.report.load import Trial
+from plls_bench.report.trials import Trial
 from plls_bench.runner_specs import iteration_label
 from plls_bench.train.loop import Progress
 from tests.synthetic_runs import make_run, write_eval

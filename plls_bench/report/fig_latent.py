@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 
 from plls_bench.report.base import Entry, Options, Output
-from plls_bench.report.load import Runs, Trial
+from plls_bench.report.load import Runs
+from plls_bench.report.trials import Trial
 from plls_bench.report.plot import (BLUE_DARK, BLUE_LIGHT, PURPLE_DARK, PURPLE_LIGHT, letter, new_figure,
                                     empty_output, rgb_colours, suptitle)
 

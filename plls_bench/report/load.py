@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import re
 import zipfile
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +28,7 @@ from plls_bench.config.tasks import ENV_BACKENDS
 from plls_bench.files import read_json, scan_jsonl
 from plls_bench.records.layout import EXCLUDED_BUDGETS, PARTIAL_DIR
 from plls_bench.report.identity import config_diff, pooling_identity
+from plls_bench.report.trials import Experiment, Gap, Trial
 from plls_bench.runs import STATUS_DONE, variant_name
 
 # The fewest finished trials per arm from which a claim about a stochastic quantity (a return, a
@@ -52,61 +52,9 @@ def variant_dirs(variant: str) -> tuple[str, ...]:
     if variant == DEFAULT_VARIANT:
         return DEFAULT_VARIANTS
     return tuple(dict.fromkeys(variant_name("auto", variant, backend) for backend in ENV_BACKENDS))
+
+
 _SEED_DIR = re.compile(r"^seed=(\d+)$")
-
-
-@dataclass(frozen=True)
-class Gap:
-    """Something the collector expected and could not use; ``seed`` is None for a whole run."""
-
-    experiment: str
-    variant: str
-    seed: int | None
-    problem: str
-
-    def __str__(self) -> str:
-        where = f"{self.experiment}/{self.variant}" + ("" if self.seed is None else f" seed={self.seed}")
-        return f"{where}: {self.problem}"
-
-
-@dataclass
-class Trial:
-    """One usable run directory (it has a readable config.json)."""
-
-    seed: int
-    path: Path
-    state: str  # done | running | failed | unknown (no readable status.json)
-    config: dict[str, Any]
-    source: str = "run"  # run (under the runs dir) | record (committed, under the records dir) | partial
-
-    def cfg(self, dotted: str, default: Any = None) -> Any:
-        """A value of the run's resolved config by dotted key, e.g. ``algo.ppo.n_envs``."""
-        node: Any = self.config
-        for part in dotted.split("."):
-            if not isinstance(node, dict) or part not in node:
-                return default
-            node = node[part]
-        return node
-
-
-@dataclass
-class Experiment:
-    """The trials of one ``<experiment>/<variant>`` that share one config (seed aside)."""
-
-    name: str
-    variant: str
-    trials: list[Trial] = field(default_factory=list)
-
-    @property
-    def budget(self) -> str | None:
-        return self.trials[0].cfg("budget.name") if self.trials else None
-
-    @property
-    def budget_text(self) -> str:
-        return f"budget {self.budget}" if self.budget else "no runs"
-
-    def cfg(self, dotted: str, default: Any = None) -> Any:
-        return self.trials[0].cfg(dotted, default) if self.trials else default
 
 
 class Runs:
