@@ -213,3 +213,31 @@ def build_all(runs_dir: Path, budget: str = "quick") -> list[Path]:
                 finish(run, cfg)
                 paths.append(run.path)
     return paths
+
+
+ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
+# tests/test_report.py's hand-computed runs. Three trials per method: the fewest a comparison is
+# judged from (report.matched.MIN_TRIALS). Each mean curve is that of the first two trials alone
+# (PL-LS 0, 50, 90, 100, ...; PPO 5i + 10).
+PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9, 2: [0, 50, 90] + [100] * 9}
+PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)], 2: [5 * i + 20 for i in range(12)]}
+
+
+def build_hand_runs(runs_dir: Path, budget: str = "quick") -> None:
+    """CarRacing PL-LS and PPO with known curves and counts, V_a with known MSEs, a filmstrip."""
+    for experiment, curves, params in (("carracing_plls_ppo", PLLS_RETURNS, (8802, 4394)),
+                                       ("carracing_ppo", PPO_RETURNS, (3_289_768, 1_644_878))):
+        for seed, curve in curves.items():
+            # the budget's own count at smoke (2) would leave no gap; set it to the trials written
+            run, cfg = make_run(runs_dir, experiment, seed, budget, f"budget.trials={len(curves)}")
+            write_eval(run, cfg, ITERATIONS, [[r - 1, r + 1] for r in curve])  # episode mean = r
+            write_params(run, *params)
+            finish(run, cfg)
+    models = [(0.010, "a"), (0.014, "b"), (0.010, "a"), (0.018, "c")]  # 3 distinct models, a shared by 2 trials
+    for seed, (mse, artifact) in enumerate(models):
+        run, cfg = make_run(runs_dir, "mountaincar_va", seed, budget, f"budget.trials={len(models)}")
+        write_repr(run, "action", 3, mse, artifact)
+        finish(run, cfg)
+    run, cfg = make_run(runs_dir, "mountaincar_plls_ppo", 0, budget)
+    write_filmstrip(run, frames=18, interval=4, steps_to_goal=70)
+    finish(run, cfg)

@@ -1,14 +1,11 @@
 """The results collector on synthetic run directories: numbers checked against values computed by
 hand, broken inputs reported (never a crash, never a write under the runs dir), every registry id
-rendered, and the CLI."""
+rendered (the CLI: tests/test_report_cli.py)."""
 from __future__ import annotations
 
 import hashlib
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,41 +13,13 @@ import pandas as pd
 import pytest
 
 from plls_bench.report import BY_ID, ENTRIES, render_all
-from plls_bench.report.__main__ import main as report_main
 from plls_bench.report.base import Options
 from plls_bench.report.claims import verdict
 from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI, TITLE_CHARS_PER_INCH, new_figure, suptitle
 from tests.conftest import REPO_ROOT
-from tests.synthetic_runs import (build_all, finish, make_run, write_eval, write_filmstrip, write_npz,
-                                  write_params, write_repr)
-
-ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
-# Three trials per method: the fewest a comparison is judged from (report.matched.MIN_TRIALS). Each
-# mean curve is that of the first two trials alone (PL-LS 0, 50, 90, 100, ...; PPO 5i + 10).
-PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9, 2: [0, 50, 90] + [100] * 9}
-PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)], 2: [5 * i + 20 for i in range(12)]}
-
-
-def build_hand_runs(runs_dir: Path, budget: str = "quick") -> None:
-    """CarRacing PL-LS and PPO with known curves and counts, V_a with known MSEs, a filmstrip."""
-    for experiment, curves, params in (("carracing_plls_ppo", PLLS_RETURNS, (8802, 4394)),
-                                       ("carracing_ppo", PPO_RETURNS, (3_289_768, 1_644_878))):
-        for seed, curve in curves.items():
-            # the budget's own count at smoke (2) would leave no gap; set it to the trials written
-            run, cfg = make_run(runs_dir, experiment, seed, budget, f"budget.trials={len(curves)}")
-            write_eval(run, cfg, ITERATIONS, [[r - 1, r + 1] for r in curve])  # episode mean = r
-            write_params(run, *params)
-            finish(run, cfg)
-    models = [(0.010, "a"), (0.014, "b"), (0.010, "a"), (0.018, "c")]  # 3 distinct models, a shared by 2 trials
-    for seed, (mse, artifact) in enumerate(models):
-        run, cfg = make_run(runs_dir, "mountaincar_va", seed, budget, f"budget.trials={len(models)}")
-        write_repr(run, "action", 3, mse, artifact)
-        finish(run, cfg)
-    run, cfg = make_run(runs_dir, "mountaincar_plls_ppo", 0, budget)
-    write_filmstrip(run, frames=18, interval=4, steps_to_goal=70)
-    finish(run, cfg)
+from tests.synthetic_runs import ITERATIONS, build_all, build_hand_runs, finish, make_run, write_eval, write_npz
 
 
 def tree_state(root: Path) -> dict[str, tuple]:
@@ -265,79 +234,6 @@ def test_output_check_catches_a_wrong_size_and_a_blank_image(tmp_path: Path) -> 
     save_figure(fig, tmp_path / "out" / "figures" / "fig21")  # right size, blank
     assert verify_outputs(tmp_path / "out", statuses) == ["fig18: fig18.png missing or not 700x450 pixels",
                                                            "fig21: fig21.png is blank"]
-
-
-def report_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "plls_bench.report", "--no-progress", *args], cwd=REPO_ROOT,
-                          env={**os.environ, "PYTHONUNBUFFERED": "1"}, capture_output=True, text=True, timeout=300)
-
-
-def test_cli_lists_the_registry_and_renders_one_id(tmp_path: Path) -> None:
-    listing = report_cli("--list")
-    assert listing.returncode == 0 and all(f"{e.id} " in listing.stdout for e in ENTRIES)
-    assert "carracing_ppo_vs, carracing_ppo_va" in listing.stdout  # Fig 20's presets
-    build_hand_runs(tmp_path / "runs")
-    done = report_cli("--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--only", "fig18")
-    assert done.returncode == 0, done.stderr
-    figures = sorted(p.name for p in (tmp_path / "out" / "figures").iterdir())
-    assert figures == ["fig18.csv", "fig18.pdf", "fig18.png"]
-    assert "not rendered yet" in (tmp_path / "out" / "README.md").read_text()
-
-
-@pytest.mark.parametrize(("args", "message"), [(["--only", "fig99"], "unknown id(s) fig99"),
-                                               (["--out", "{runs}/x"], "lies inside --runs"),
-                                               (["--runs", "{runs}/nope"], "no such directory"),
-                                               (["--records-only", "--records", "{runs}/nope"],
-                                                "--records-only: no records at")])
-def test_cli_refuses_bad_input_before_writing(tmp_path: Path, args: list[str], message: str,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
-    runs = tmp_path / "runs"
-    runs.mkdir()
-    args = [a.format(runs=runs) for a in args]
-    defaults = [] if "--runs" in args else ["--runs", str(runs)]
-    defaults += [] if "--out" in args else ["--out", str(tmp_path / "out")]
-    assert report_main([*defaults, *args, "--no-progress"]) == 2  # in-process: the same code path, no import cost
-    assert message in capsys.readouterr().err
-    assert not (tmp_path / "out").exists() and list(runs.iterdir()) == []
-
-
-@pytest.mark.slow
-def test_reproduce_runs_the_collector_after_the_presets(tmp_path: Path) -> None:
-    from plls_bench.reproduce import main as reproduce_main
-
-    runs, out = tmp_path / "runs", tmp_path / "out"
-    assert reproduce_main(["--profile", "smoke", "--only", "mountaincar_data", "--runs", str(runs),
-                           "--out", str(out)]) == 0
-    assert (runs / "mountaincar_data" / "default" / "seed=0" / "status.json").is_file()
-    readme = (out / "README.md").read_text()
-    assert "Budget profile: **smoke**" in readme and "mountaincar_ppo/default: no runs" in readme
-
-
-def test_a_broken_paper_csv_is_refused_naming_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    paper = tmp_path / "paper"
-    paper.mkdir()
-    for path in PAPER_DIR.glob("*.csv"):
-        (paper / path.name).write_text(path.read_text())
-    claims = (paper / "claims.csv").read_text().splitlines()
-    claims[1] = claims[1].replace("repr_mse", "repr_mse_typo")
-    (paper / "claims.csv").write_text("\n".join(claims))
-    (tmp_path / "runs").mkdir()
-    args = ["--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "out"), "--paper", str(paper)]
-    assert report_main(args) == 2
-    assert "claims.csv line 2: unknown kind 'repr_mse_typo'" in capsys.readouterr().err
-    assert not (tmp_path / "out").exists()
-    line = next(i for i, text in enumerate(claims) if ",final:stochastic," in text)  # a misspelt policy
-    claims[1] = claims[1].replace("repr_mse_typo", "repr_mse")
-    claims[line] = claims[line].replace(",final:stochastic,", ",final:stochastc,")
-    (paper / "claims.csv").write_text("\n".join(claims))
-    assert report_main(args) == 2
-    assert f"claims.csv line {line + 1}: unknown param 'final:stochastc'" in capsys.readouterr().err
-    claims[line] = claims[line].replace(",final:stochastc,", ",final:stochastic,")
-    line = next(i for i, text in enumerate(claims) if ",Suite PPO beats the random policy" in text)  # fig18's check
-    claims[line] = claims[line].replace(",Suite PPO beats the random policy", ",Suite PPO beats the randon policy")
-    (paper / "claims.csv").write_text("\n".join(claims))
-    assert report_main(args) == 2
-    assert f"claims.csv line {line + 1}: unknown requires 'Suite PPO beats the randon policy" in capsys.readouterr().err
 
 
 def test_a_long_figure_title_is_wrapped_to_the_figure_width_not_clipped() -> None:
