@@ -11,10 +11,10 @@ import pandas as pd
 from plls_bench.metrics import parallel_envs
 from plls_bench.report.base import Entry, Options, Output, Source
 from plls_bench.report.load import Runs
-from plls_bench.report.trials import Experiment, Trial
 from plls_bench.report.returns import Convergence, convergence, load_curves
 from plls_bench.report.stats import CONVERGENCE_TOLERANCE, CONVERGENCE_WINDOW
 from plls_bench.report.tables import NA, Table, fmt, plural, read_paper
+from plls_bench.report.trials import Experiment, Trial
 from plls_bench.runs import PARAMS_FILE
 
 CONVERGENCE_RULE = (

@@ -9,8 +9,8 @@ import numpy as np
 
 from plls_bench.metrics import EvalRow, parallel_envs
 from plls_bench.report.load import Runs
-from plls_bench.report.trials import Experiment, Trial
 from plls_bench.report.stats import CURVE_RESAMPLES, align, bootstrap_ci, complete, convergence_index
+from plls_bench.report.trials import Experiment, Trial
 from plls_bench.runner_specs import iteration_label
 from plls_bench.runs import STATUS_DONE
 

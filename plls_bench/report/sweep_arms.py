@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from plls_bench.report.load import DEFAULT_VARIANT, Runs
-from plls_bench.report.trials import Experiment
 from plls_bench.report.matched import Matched, matched
 from plls_bench.report.returns import Curves, load_curves
+from plls_bench.report.trials import Experiment
 from plls_bench.sweeps import Sweep
 
 # V_a's test MSE under both readings the suite reports (README, "What each runner writes").
