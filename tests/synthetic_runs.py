@@ -215,10 +215,10 @@ def build_all(runs_dir: Path, budget: str = "quick") -> list[Path]:
     return paths
 
 
-ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
 # tests/test_report.py's hand-computed runs. Three trials per method: the fewest a comparison is
 # judged from (report.matched.MIN_TRIALS). Each mean curve is that of the first two trials alone
 # (PL-LS 0, 50, 90, 100, ...; PPO 5i + 10).
+ITERATIONS = list(range(0, 24, 2))  # 12 evaluations, one every 2 PPO iterations (quick budget)
 PLLS_RETURNS = {0: [0, 20, 80] + [100] * 9, 1: [0, 80, 100] + [100] * 9, 2: [0, 50, 90] + [100] * 9}
 PPO_RETURNS = {0: [5 * i for i in range(12)], 1: [5 * i + 10 for i in range(12)], 2: [5 * i + 20 for i in range(12)]}
 
