@@ -41,3 +41,32 @@ def sigterm_raises() -> Iterator[None]:
     finally:
         if not fired:
             signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold back every signal with a Python handler (SIGTERM as :class:`Terminated`, submitit's
+    requeue signal, Ctrl-C) until the block ends, then run each handler once per arrival, there.
+    For checkpoint writes: a handler's exception raised inside ``torch.save``'s zip writer is
+    replaced by torch's own ``RuntimeError: ... unexpected pos``, so a job signalled mid-write
+    failed instead of requeueing or stopping. The handlers are swapped, not the signal mask
+    blocked: a process-wide signal can land on any thread that leaves it unblocked."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handlers = {number: handler for number in signal.valid_signals()
+                if callable(handler := signal.getsignal(number))}
+    arrived: list[int] = []
+
+    def record(signum: int, frame: object) -> None:
+        arrived.append(signum)
+
+    for number in handlers:
+        signal.signal(number, record)
+    try:
+        yield
+    finally:
+        for number, handler in handlers.items():
+            signal.signal(number, handler)
+        for signum in arrived:
+            handlers[signum](signum, None)

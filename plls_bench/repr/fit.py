@@ -21,6 +21,7 @@ from torch import Tensor
 from plls_bench.files import atomic_write_bytes
 from plls_bench.progress import progress_bar
 from plls_bench.repr.models import VAE
+from plls_bench.signals import signals_deferred
 from plls_bench.trunks import pixels_to_unit
 
 log = logging.getLogger(__name__)
@@ -94,8 +95,9 @@ def mean_reconstruction_mse(model: VAE, split: Split, batch_size: int, device: t
 def _save_resume(path: Path, model: VAE, optimizer: torch.optim.Optimizer, epoch: int,
                  history: list[dict[str, float]]) -> None:
     buffer = io.BytesIO()
-    torch.save({"model": model.state_dict(), "optimizer": optimizer.state_dict(), "epoch": epoch,
-                "rng": torch.get_rng_state(), "history": history}, buffer)
+    with signals_deferred():  # a requeue or stop signal inside torch.save would fail the job instead
+        torch.save({"model": model.state_dict(), "optimizer": optimizer.state_dict(), "epoch": epoch,
+                    "rng": torch.get_rng_state(), "history": history}, buffer)
     atomic_write_bytes(path, buffer.getvalue())
 
 

@@ -24,6 +24,7 @@ from plls_bench.repr.fit import Split, batches, evaluate, fit, mean_reconstructi
 from plls_bench.repr.keys import FILES, model_config, repr_path, sha256, training_seed
 from plls_bench.repr.models import VAE, ActionVAE, StateVAE
 from plls_bench.repr.samples import action_samples, state_samples
+from plls_bench.signals import signals_deferred
 
 
 def action_dim(cfg: Config) -> int:
@@ -124,7 +125,8 @@ def _mean_predictor_mse(train: Split, test: Split, chunk: int = 1000) -> float:
 def _write(out: Path, model: VAE, history: list[dict], samples: dict[str, np.ndarray], test: dict) -> None:
     buffer = io.BytesIO()
     # contiguous: the stored weights do not depend on the layout the model ran in (plls_bench/trunks.py)
-    torch.save({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, buffer)
+    with signals_deferred():  # see plls_bench/signals.py: a signal inside torch.save fails the job
+        torch.save({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, buffer)
     atomic_write_bytes(out / "model.pt", buffer.getvalue())
     atomic_write_json(out / "history.json", history)
     atomic_write_json(out / "test.json", test)

@@ -34,6 +34,7 @@ from plls_bench.config import Config
 from plls_bench.metrics import EvalRow, TrainRow
 from plls_bench.progress import progress_bar
 from plls_bench.runs import Run
+from plls_bench.signals import signals_deferred
 
 
 @dataclass(frozen=True)
@@ -198,5 +199,6 @@ def _point(trainer: Trainer, run: Run, at: Progress, row: TrainRow | None, clock
     trainer.report(at, row, evaluation)
     due = trainer.checkpoint_due(at, evaluation is not None)
     if due:
-        trainer.checkpoint(replace(at, wall_s=clock()))
+        with signals_deferred():  # a stop or requeue signal waits for the checkpoint to be written
+            trainer.checkpoint(replace(at, wall_s=clock()))
     return at, due
