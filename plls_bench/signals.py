@@ -46,7 +46,8 @@ def sigterm_raises() -> Iterator[None]:
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
     """Hold back every signal with a Python handler (SIGTERM as :class:`Terminated`, submitit's
-    requeue signal, Ctrl-C) until the block ends, then run each handler once per arrival, there.
+    requeue signal, Ctrl-C) until the block ends, then run the handler of each signal that arrived,
+    once, in order of arrival (the first that raises ends it: a repeat adds nothing).
     For checkpoint writes: a handler's exception raised inside ``torch.save``'s zip writer is
     replaced by torch's own ``RuntimeError: ... unexpected pos``, so a job signalled mid-write
     failed instead of requeueing or stopping. The handlers are swapped, not the signal mask
@@ -68,5 +69,5 @@ def signals_deferred() -> Iterator[None]:
     finally:
         for number, handler in handlers.items():
             signal.signal(number, handler)
-        for signum in arrived:
+        for signum in dict.fromkeys(arrived):
             handlers[signum](signum, None)

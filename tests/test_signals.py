@@ -98,3 +98,15 @@ def test_the_training_loop_finishes_a_checkpoint_before_a_signal_ends_it(runs_di
     assert requeue_handler == [signal.SIGUSR2]
     assert toy.calls[-2:] == ["checkpoint 0", "close"]
     assert (run.path / "toy.txt").read_text().split() == ["0", "0", "0", "1"], "the checkpoint was written whole"
+
+
+def test_a_repeated_signal_runs_its_handler_once() -> None:
+    received: list[int] = []
+    previous = signal.signal(signal.SIGUSR1, lambda signum, frame: received.append(signum))
+    try:
+        with signals_deferred():
+            os.kill(os.getpid(), signal.SIGUSR1)
+            os.kill(os.getpid(), signal.SIGUSR1)
+        assert received == [signal.SIGUSR1]
+    finally:
+        signal.signal(signal.SIGUSR1, previous)
