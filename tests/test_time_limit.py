@@ -73,6 +73,22 @@ def test_the_trainers_estimate_of_the_next_interval_counts_when_longer() -> None
     assert limit.would_pass(1401.0) and not limit.would_pass(1399.0)
 
 
+def test_an_interval_the_trainer_foretold_is_not_kept_once_over() -> None:
+    """A sitting that resumed pixel DBC before its burst: after the foretold 1500 s burst the
+    episodes take 30 s again, and the sitting goes on to its limit instead of stopping with an
+    hour left (as it did while the burst counted as the last interval of its kind)."""
+    clock = FakeClock()
+    limit = TimeLimit(50.0, now=clock)  # 3000 s
+    limit.mark(ahead_s=1500.0)  # the first interval is the burst: nothing measured before it
+    clock.t = 1600.0  # 1600 + 1500 would pass 3000; the burst is over and none comes next
+    assert not limit.stop_after_checkpoint(evaluated=False)
+    for t in range(1630, 2951, 30):  # 30 s episodes: from 2950 the next ends by 2980, within 3000
+        clock.t = float(t)
+        assert not limit.stop_after_checkpoint(evaluated=False), t
+    clock.t = 2980.0  # the next would end at 3010
+    assert limit.stop_after_checkpoint(evaluated=False)
+
+
 def test_no_limit_never_stops() -> None:
     clock = FakeClock()
     limit = TimeLimit(0.0, now=clock)

@@ -70,16 +70,20 @@ class TimeLimit:
     evaluation (one in ten episodes on cheetah) are longer than those that only end an episode. The
     last of each kind only: a fresh DBC run's burst of ``init_steps`` updates makes one interval of
     about 20 CPU-minutes that never comes back. No interval before it foretells it, so the trainer
-    passes its own estimate of such an interval as ``ahead_s``. Times are ``now()`` seconds."""
+    passes its own estimate of such an interval as ``ahead_s``, and an interval it foretold is not
+    kept once over: those after it are like those before it (kept, it stopped a sitting with time
+    left for hundreds of steps). Times are ``now()`` seconds."""
 
     def __init__(self, limit_min: float, now: Callable[[], float] = time.perf_counter) -> None:
         self.limit_s, self.now = 60.0 * limit_min, now
         self.started = self.last_checkpoint = now()
         self.last_interval: dict[bool, float] = {}  # evaluated or not -> seconds
+        self.foretold = False  # the interval under way is one the trainer foretold
 
-    def mark(self) -> None:
-        """Start timing the next checkpoint interval here (set-up and restore time are not one)."""
-        self.last_checkpoint = self.now()
+    def mark(self, ahead_s: float = 0.0) -> None:
+        """Start timing the next checkpoint interval here (set-up and restore time are not one);
+        ``ahead_s``: the trainer's estimate of it, when it foretells one (0: none)."""
+        self.last_checkpoint, self.foretold = self.now(), ahead_s > 0
 
     @property
     def active(self) -> bool:
@@ -89,9 +93,10 @@ class TimeLimit:
         """Call right after each checkpoint of the training loop; ``evaluated``: the interval held
         an evaluation; ``ahead_s``: the trainer's estimate of the next interval (0: none)."""
         now = self.now()
-        self.last_interval[evaluated] = now - self.last_checkpoint
-        self.last_checkpoint = now
-        return self.would_pass(max(*self.last_interval.values(), ahead_s))
+        if not self.foretold:
+            self.last_interval[evaluated] = now - self.last_checkpoint
+        self.last_checkpoint, self.foretold = now, ahead_s > 0
+        return self.would_pass(max([*self.last_interval.values(), ahead_s]))
 
     def would_pass(self, next_s: float) -> bool:
         """Whether an interval of ``next_s`` seconds from now would end past the limit."""
@@ -160,9 +165,9 @@ def train(trainer: Trainer, run: Run, cfg: Config) -> None:
                           desc=f"{cfg.runner} {cfg.experiment} seed={cfg.seed}") as bar:
             if restored is None:  # a resumed run's checkpoint came after its point's evaluation
                 at, _ = _point(trainer, run, replace(at, wall_s=clock()), None, clock, bar)
-            limit.mark()
             # only a foretold interval stops a run before its first: each launch makes progress otherwise
             ahead = trainer.interval_ahead_s(at) if limit.active and at.iteration < trainer.iterations else 0.0
+            limit.mark(ahead)
             if ahead > 0 and limit.would_pass(ahead):
                 raise TimeLimitReached(at, cfg.time_limit_min)
             evaluations_then = at.evaluations  # at the last checkpoint
