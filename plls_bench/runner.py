@@ -12,6 +12,7 @@ from pathlib import Path
 
 from plls_bench.config import Config
 from plls_bench.devices import require_device
+from plls_bench.heap import retain_freed_memory
 from plls_bench.records.restore import seed_from_partial
 from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import STATUS_DONE, STATUS_FAILED, STATUS_RUNNING, STATUS_STOPPED, Run, config_hash
@@ -44,7 +45,7 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
     if cfg.time_limit_min > 0 and not spec.time_limited:
         log.info("runner %s runs to its end: time_limit_min applies to learners that checkpoint", cfg.runner)
     fn = spec.load()  # imports this runner's module (and simulator) only
-    _configure_torch(cfg)
+    _configure_process(cfg)
     seed_everything(derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial).train)
     run.prepare(cfg, cfg_hash)
     run.write_status(STATUS_RUNNING, config_hash=cfg_hash)
@@ -83,7 +84,10 @@ def _supersede_keeping_hydra(run: Run, runs_dir: str) -> Path:
     return moved
 
 
-def _configure_torch(cfg: Config) -> None:
+def _configure_process(cfg: Config) -> None:
+    """Process-wide speed settings, none of which changes what the run computes."""
+    if cfg.retain_freed_memory:
+        retain_freed_memory()
     if cfg.torch_threads > 0:
         import torch
 

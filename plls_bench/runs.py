@@ -32,7 +32,7 @@ STATUS_RUNNING, STATUS_DONE, STATUS_FAILED = "running", "done", "failed"
 STATUS_STOPPED = "stopped"  # ended early (time_limit_min, at a checkpoint; or SIGTERM); the next launch resumes it
 SUPERSEDED_DIR = ".superseded"  # under runs_dir: runs whose config changed, moved aside, never deleted
 # Config keys that do not change what a run computes: left out of the config hash.
-HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant", "time_limit_min")
+HASH_EXCLUDED_KEYS = ("runs_dir", "progress", "torch_threads", "variant", "time_limit_min", "retain_freed_memory")
 # Keys added after runs were recorded: at these values (which compute what the runs before the key
 # computed) they are left out of the hash, so those runs and their committed records keep their
 # identity. A key set to anything else is hashed like every other.

@@ -24,7 +24,7 @@ Graph = dict[str, dict[str, int]]  # module -> {imported project module: line of
 # a bare root package is only itself) and imports only from its own layer and those below.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundation", ("plls_bench", "plls_bench.files", "plls_bench.hashing", "plls_bench.seeding", "plls_bench.progress",
-                    "plls_bench.signals", "plls_bench.metrics", "plls_bench.evaluate")),
+                    "plls_bench.signals", "plls_bench.heap", "plls_bench.metrics", "plls_bench.evaluate")),
     ("config", ("plls_bench.config",)),
     ("run dirs", ("plls_bench.devices", "plls_bench.provenance", "plls_bench.runs", "plls_bench.artifacts",
                   "plls_bench.composition", "plls_bench.sweeps", "plls_bench.records", "plls_bench.manifest")),

@@ -54,6 +54,7 @@ class Config(Validated):
     runs_dir: str = "results/runs"
     device: str = "auto"
     torch_threads: int = 0
+    retain_freed_memory: bool = True
     precision: str = "fp32"
     progress: bool = True
     time_limit_min: float = 0.0
