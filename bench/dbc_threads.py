@@ -32,6 +32,8 @@ sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, finish_section, machine  # noqa: E402
 from bench.dbc_throughput import build_trainer  # noqa: E402
+from baselines.dbc.agent import Batch  # noqa: E402
+from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 
 SECTION = "dbc_threads"
 POLICIES = ("", "PASSIVE")  # "": OMP_WAIT_POLICY unset (what every run of the suite gets)
@@ -42,13 +44,8 @@ def child(preset: str, budget: str, steps: int, rounds: int, runs_dir: str) -> d
     """``{threads: [[wall s, CPU s], ...]}`` of single updates, threads interleaved per round."""
     torch.set_num_threads(1)
     trainer = build_trainer(preset, budget, runs_dir)
-    dbc = trainer.cfg.algo.dbc
     try:
-        obs = trainer.train_env.reset()
-        trainer.replay.start_episode(obs[0])
-        for i in range(steps):
-            obs, _, _ = trainer.step(obs, dbc.init_steps + i, updates=False)
-        batch = trainer.replay.sample(dbc.batch_size, trainer.rng, trainer.device)
+        batch = filled_batch(trainer, steps)
         times: dict[str, list[list[float]]] = {str(t): [] for t in THREADS}
         for r in range(rounds + 1):  # round 0 warms up each thread count
             for threads in THREADS:
@@ -61,6 +58,26 @@ def child(preset: str, budget: str, steps: int, rounds: int, runs_dir: str) -> d
         trainer.train_env.close()
         trainer.eval_env.close()
     return times
+
+
+def filled_batch(trainer: DBCTrainer, steps: int) -> Batch:
+    """One minibatch from the replay after ``steps`` acting steps (the policy acts, no updates)."""
+    dbc = trainer.cfg.algo.dbc
+    obs = trainer.train_env.reset()
+    trainer.replay.start_episode(obs[0])
+    for i in range(steps):
+        obs, _, _ = trainer.step(obs, dbc.init_steps + i, updates=False)
+    return trainer.replay.sample(dbc.batch_size, trainer.rng, trainer.device)
+
+
+def add_child_arguments(parser: argparse.ArgumentParser, rounds: int, rounds_help: str) -> None:
+    """The options a parent passes on to its child processes, shared by the DBC update benches."""
+    parser.add_argument("--preset", default="cheetah_dbc")
+    parser.add_argument("--budget", default="quick", help="budget whose DBC settings are used")
+    parser.add_argument("--steps", type=int, default=30, help="acting steps that fill the replay")
+    parser.add_argument("--rounds", type=int, default=rounds, help=rounds_help)
+    parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
 
 
 def run_policy(policy: str, args: argparse.Namespace) -> dict[str, list[list[float]]]:
@@ -88,12 +105,7 @@ def rows(results: dict[str, dict[str, list[list[float]]]]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--preset", default="cheetah_dbc")
-    parser.add_argument("--budget", default="quick", help="budget whose DBC settings are used")
-    parser.add_argument("--steps", type=int, default=30, help="acting steps that fill the replay")
-    parser.add_argument("--rounds", type=int, default=3, help="timed updates per thread count (after 1 warm-up)")
-    parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    add_child_arguments(parser, 3, "timed updates per thread count (after 1 warm-up)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.steps < 2 or args.rounds < 1:
