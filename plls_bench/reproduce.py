@@ -173,7 +173,8 @@ def records_line(runs_dir: str) -> str:
     return line
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
+def build_parser() -> argparse.ArgumentParser:
+    """``reproduce.sh``'s options (checked together by ``parse_args``)."""
     parser = argparse.ArgumentParser(prog="reproduce.sh", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", choices=BUDGET_NAMES, default="paper", help="compute profile (default: paper)")
@@ -217,6 +218,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--dry-run", action="store_true", help="print the plan and its estimated cost, run nothing")
     parser.add_argument("--rerun-recorded", action="store_true",
                         help="run trials that a committed record holds done again (default: counted as done)")
+    return parser
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    """The options, with every bad value or combination refused by one ``parser.error`` naming it."""
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
@@ -225,9 +232,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
             parser.error(f"{option} must be >= 0, got {minutes:g}")
     if args.stop_after_min > 0 and args.launcher == "slurm":
         parser.error("--stop-after-min: SLURM starts jobs when it chooses; give each a limit with --time-limit-min")
-    bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
     if args.sweep and args.only:
         parser.error("--sweep and --only: give one (a sweep runs only its own preset)")
+    bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
     if bad:
         parser.error(f"--hydra takes hydra.* KEY=VALUE settings, got {', '.join(bad)}")
     if args.out is None:
