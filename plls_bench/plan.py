@@ -20,8 +20,9 @@ from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
 from plls_bench.rates import load_rates, rate_keys
-from plls_bench.records.layout import (is_recorded, partial_iteration, partial_record, recorded_artifact,
-                                       records_dir_for)
+from plls_bench.records.layout import (PENDING_DIR, is_recorded, partial_iteration, partial_record,
+                                       recorded_artifact, records_dir_for)
+from plls_bench.records.pending import recorded_attempt
 from plls_bench.runner_specs import runner_spec
 from plls_bench.repr.keys import repr_key
 from plls_bench.hashing import stable_hash
@@ -41,6 +42,7 @@ class Trial:
     resumes_from: str = ""                        # "run dir" or "partial record" ("": starts afresh)
     iterations: int = 0                           # iterations of the whole run (learners; else 0)
     checkpoints: int = 0                          # checkpoints still to come (time-limited learners; else 0)
+    lost_at: int = 0                              # iteration an uncarried earlier attempt reached (its pending record)
 
     @property
     def remaining(self) -> float:
@@ -148,8 +150,10 @@ def _plan_preset(experiment: str, profile: str, runs_dir: str, count_records: bo
         cfg_hash, key = config_hash(cfg), path.relative_to(runs_dir)
         done = Run(path).is_done(cfg_hash)
         at, source = (0, "") if done else _resume_point(cfg, path, partial_record(records, key, cfg_hash), cfg_hash)
+        lost = 0 if done else recorded_attempt(records / PENDING_DIR / key, cfg_hash) or 0
         trials.append(Trial(seed, path, done, cfg, is_recorded(records, key, cfg_hash), at, source,
-                            Schedule.of(cfg).iterations if source else 0, _checkpoints_left(cfg, at)))
+                            Schedule.of(cfg).iterations if source or lost else 0, _checkpoints_left(cfg, at),
+                            lost if lost > at else 0))
     rl = runner_spec(first.runner).trains_policy
     return PresetPlan(experiment, first.env.name, first.runner, trials,
                       first.budget.train_env_steps if rl else 0, overrides=overrides, count_records=count_records)

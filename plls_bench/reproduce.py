@@ -55,6 +55,8 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
     for p in plans:  # trials that continue from a checkpoint: only their remainder is costed
         rows += [f"  resumes: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,} "
                  f"(from its {t.resumes_from})" for t in p.pending if t.resumes_from]
+        rows += [f"  behind: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,}; an earlier attempt "
+                 f"reached {t.lost_at:,} (its pending record: metrics only, no checkpoint)" for t in p.pending if t.lost_at]
     pending, recorded = sum(len(p.pending) for p in plans), sum(p.recorded for p in plans)
     rerun = "run again (--rerun-recorded)" if plans and not plans[0].count_records else "counted as done"
     rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "

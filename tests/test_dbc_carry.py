@@ -81,9 +81,11 @@ def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path,
     assert export_records(runs).skipped == ["cheetah_dbc/default/seed=0: status running (no checkpoint to carry)"]
     _checkpoint(run, 2**16)
     monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)  # as pixel DBC's ~300 MiB is to 64 MiB
-    [reason] = export_records(runs).skipped
+    done = export_records(runs)
+    [reason] = done.skipped
     assert reason.startswith("cheetah_dbc/default/seed=0: status running (0.1 MiB to carry, over the 0 MiB")
-    assert not (tmp_path / "results" / "records").exists()
+    assert done.pending == ["cheetah_dbc/default/seed=0"], "its metrics go to a pending record (test_pending_records.py)"
+    assert not (tmp_path / "results" / "records" / PARTIAL_DIR).exists()
 
 
 def test_parts_that_do_not_join_to_the_recorded_file_are_refused(tmp_path: Path,

@@ -8,7 +8,9 @@ actor's weights, no replay), each file under :data:`~plls_bench.records.layout.M
 Records live beside the runs dir (``results/records/`` for ``results/runs/``), in the same
 ``<experiment>/<variant>/seed=<k>`` layout, with the V_s / V_a models they use under
 ``artifacts/`` and unfinished learner runs under ``partial/`` (:mod:`plls_bench.records.layout`; a file
-over the cap travels there in parts).
+over the cap travels there in parts). An unfinished run whose checkpoint is over the cap of a
+partial record leaves its metrics so far under ``pending/`` (:mod:`plls_bench.records.pending`):
+evidence only, never resumed from or judged.
 
 - ``reproduce`` counts a recorded trial as done (``--rerun-recorded`` runs it again);
 - a trial that starts with a partial record of its config resumes from it

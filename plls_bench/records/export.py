@@ -14,7 +14,9 @@ from typing import Any
 
 from plls_bench.files import read_json
 from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, MAX_PARTIAL_BYTES,
-                                       PART_SUFFIX, PARTIAL_DIR, PARTIAL_MARKER, REPR_KINDS, records_dir_for)
+                                       PART_SUFFIX, PARTIAL_DIR, PARTIAL_MARKER, PENDING_DIR, PENDING_MARKER,
+                                       REPR_KINDS, records_dir_for)
+from plls_bench.records.pending import pending_marker, reached_iteration, recorded_attempt
 from plls_bench.runner_specs import RUNNERS
 from plls_bench.runs import STATUS_DONE, iter_run_dirs
 
@@ -31,10 +33,12 @@ class Exported:
     partial: list[str] = field(default_factory=list)    # unfinished runs written as partial records
     artifacts: list[str] = field(default_factory=list)  # <kind>/<hash> artifacts newly recorded
     held: list[str] = field(default_factory=list)       # finished runs kept as partial records (see export_records)
+    pending: list[str] = field(default_factory=list)    # uncarried runs whose metrics went to pending records
 
     def summary(self) -> str:
         return (f"{len(self.written)} written, {self.unchanged} unchanged, {len(self.partial)} partial, "
-                f"{len(self.held)} held, {len(self.artifacts)} artifact(s) added, {len(self.skipped)} skipped")
+                f"{len(self.pending)} pending, {len(self.held)} held, {len(self.artifacts)} artifact(s) added, "
+                f"{len(self.skipped)} skipped")
 
 
 def record_files(run_dir: Path) -> list[Path]:
@@ -86,11 +90,11 @@ def write_record(target: Path, contents: dict[str, Content]) -> tuple[bool, list
     return True, too_big
 
 
-def _remove_partial(out: Path, key: str) -> None:
-    """Delete the partial record ``key`` under ``out`` and the folders it leaves empty, so no
-    empty ``partial/<experiment>/<variant>`` stays behind to suggest a trial still pending."""
-    shutil.rmtree(out / PARTIAL_DIR / key, ignore_errors=True)
-    for folder in (out / PARTIAL_DIR / key).parents:
+def _remove_unfinished(out: Path, kind: str, key: str) -> None:
+    """Delete the ``kind`` (partial or pending) record ``key`` under ``out`` and the folders it
+    leaves empty, so no empty ``<kind>/<experiment>/<variant>`` suggests a trial still unfinished."""
+    shutil.rmtree(out / kind / key, ignore_errors=True)
+    for folder in (out / kind / key).parents:
         if folder == out or not folder.is_dir() or any(folder.iterdir()):
             break
         folder.rmdir()
@@ -137,6 +141,24 @@ def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple
     marker = {"config_hash": (read_json(run_dir / "config.json") or {}).get("config_hash"), "state": state,
               "iteration": iteration, "files": restored, "split": split, "commit": files[-1]}
     contents[PARTIAL_MARKER] = (json.dumps(marker, indent=2, sort_keys=True) + "\n").encode()
+    return write_record(target, contents)
+
+
+def export_pending(run_dir: Path, target: Path, not_carried: str) -> tuple[bool, list[str]] | str | None:
+    """An uncarried run's pending record (``records.pending``): its record files and
+    ``pending.json``. None when it has no metrics row yet; a reason string when the record already
+    holds an attempt of this config that got further (a trial restarted from zero elsewhere)."""
+    reached = reached_iteration(run_dir)
+    if reached is None:
+        return None
+    config_hash = (read_json(run_dir / "config.json") or {}).get("config_hash")
+    earlier = recorded_attempt(target, config_hash)
+    if earlier is not None and earlier > reached:
+        return (f"its pending record is kept: an earlier attempt reached iteration {earlier:,}, "
+                f"this run {reached:,}")
+    marker = pending_marker(run_dir, reached, not_carried)
+    contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
+    contents[PENDING_MARKER] = (json.dumps(marker, indent=2, sort_keys=True) + "\n").encode()
     return write_record(target, contents)
 
 
@@ -187,13 +209,16 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         other = None if replace or state != STATUS_DONE else _other_done_record(out / key, ours)
         if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
-            _remove_partial(out, key)  # the finished record replaces it
+            for kind in (PARTIAL_DIR, PENDING_DIR):  # the finished record replaces them
+                _remove_unfinished(out, kind, key)
         else:
             carried = export_partial(run_dir, out / PARTIAL_DIR / key, config)
             if isinstance(carried, str):
                 done.skipped.append(f"{key}: status {state} ({carried})")
+                _count_pending(done, key, export_pending(run_dir, out / PENDING_DIR / key, carried))
                 continue
             _count(done, key, carried, done.partial)
+            _remove_unfinished(out, PENDING_DIR, key)  # the partial record holds its metrics too
             if other is not None:
                 done.held.append(f"{key}: its record holds a finished trial of another config ({other}); "
                                  "held as a partial record (--replace replaces the record)")
@@ -236,6 +261,15 @@ def _count(done: Exported, key: str, result: tuple[bool, list[str]], written: li
         done.unchanged += 1
 
 
+def _count_pending(done: Exported, key: str, result: tuple[bool, list[str]] | str | None) -> None:
+    if result is None:
+        return
+    if isinstance(result, str):
+        done.skipped.append(f"{key}: no pending record written ({result})")
+    else:
+        _count(done, key, result, done.pending)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m plls_bench.records",
                                      description="Export finished and unfinished non-smoke runs into the "
@@ -256,6 +290,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[records] wrote {key}")
     for key in done.partial:
         print(f"[records] wrote partial record {key} (resumed from there by the next start)")
+    for key in done.pending:
+        print(f"[records] wrote pending record {key} (its metrics so far; its checkpoint stays in the run dir)")
     for name in done.artifacts:
         print(f"[records] wrote artifact {name}")
     for line in done.skipped:

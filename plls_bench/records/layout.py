@@ -5,6 +5,9 @@
     <experiment>/<variant>/seed=<k>/          the record of a finished run (status done)
     partial/<experiment>/<variant>/seed=<k>/  an unfinished run carried to the next session,
                                               with partial.json written last
+    pending/<experiment>/<variant>/seed=<k>/  the metrics so far of an unfinished run whose
+                                              checkpoint cannot be carried (pending.json):
+                                              evidence only, never restored or judged
     artifacts/repr_{state,action}/<hash>/     the V_s / V_a models the records used, laid out as
                                               the runs dir's artifacts (key.json, meta.json)
 """
@@ -27,6 +30,8 @@ PART_SUFFIX = ".part-"
 EXCLUDED_BUDGETS = ("smoke",)  # smoke runs check the pipeline, not the paper
 PARTIAL_DIR = "partial"
 PARTIAL_MARKER = "partial.json"
+PENDING_DIR = "pending"
+PENDING_MARKER = "pending.json"
 ARTIFACTS_DIR = "artifacts"
 REPR_KINDS = ("repr_state", "repr_action")  # the artifacts records carry (datasets are too big)
 
