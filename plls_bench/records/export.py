@@ -144,19 +144,19 @@ def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple
     return write_record(target, contents)
 
 
-def export_pending(run_dir: Path, target: Path, not_carried: str) -> tuple[bool, list[str]] | str | None:
+def export_pending(run_dir: Path, target: Path, not_carried: str,
+                   config_hash: str | None) -> tuple[bool, list[str]] | str | None:
     """An uncarried run's pending record (``records.pending``): its record files and
     ``pending.json``. None when it has no metrics row yet; a reason string when the record already
     holds an attempt of this config that got further (a trial restarted from zero elsewhere)."""
     reached = reached_iteration(run_dir)
     if reached is None:
         return None
-    config_hash = (read_json(run_dir / "config.json") or {}).get("config_hash")
     earlier = recorded_attempt(target, config_hash)
     if earlier is not None and earlier > reached:
         return (f"its pending record is kept: an earlier attempt reached iteration {earlier:,}, "
                 f"this run {reached:,}")
-    marker = pending_marker(run_dir, reached, not_carried)
+    marker = pending_marker(run_dir, config_hash, reached, not_carried)
     contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
     contents[PENDING_MARKER] = (json.dumps(marker, indent=2, sort_keys=True) + "\n").encode()
     return write_record(target, contents)
@@ -215,7 +215,7 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
             carried = export_partial(run_dir, out / PARTIAL_DIR / key, config)
             if isinstance(carried, str):
                 done.skipped.append(f"{key}: status {state} ({carried})")
-                _count_pending(done, key, export_pending(run_dir, out / PENDING_DIR / key, carried))
+                _count_pending(done, key, export_pending(run_dir, out / PENDING_DIR / key, carried, ours))
                 continue
             _count(done, key, carried, done.partial)
             _remove_unfinished(out, PENDING_DIR, key)  # the partial record holds its metrics too

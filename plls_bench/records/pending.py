@@ -39,10 +39,9 @@ def recorded_attempt(target: Path, cfg_hash: str | None) -> int | None:
     return int(marker["iteration"])
 
 
-def pending_marker(run_dir: Path, reached: int, reason: str) -> dict[str, Any]:
+def pending_marker(run_dir: Path, cfg_hash: str | None, reached: int, reason: str) -> dict[str, Any]:
     """What ``pending.json`` says: the run's config hash and state, the iteration its rows reach and
     why its checkpoint was not carried."""
-    written = read_json(Path(run_dir) / "config.json") or {}
     state = (read_json(Path(run_dir) / "status.json") or {}).get("state")
-    return {"config_hash": written.get("config_hash"), "state": state, "iteration": reached,
+    return {"config_hash": cfg_hash, "state": state, "iteration": reached,
             "resumable": False, "not_carried": reason}
