@@ -103,3 +103,25 @@ def test_a_run_without_metrics_writes_no_pending_record(tmp_path: Path, small_ca
     done = export_records(runs)
     assert done.pending == [] and done.skipped == [f"{KEY}: status running (no checkpoint to carry)"]
     assert not (tmp_path / "results" / "records").exists()
+
+
+def test_a_carried_run_behind_a_pending_record_leaves_it_until_it_passes_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The attempt lost with its machine reached 50; the trial restarted under a cap that carries
+    it: its partial record is written, and the pending record stays until the run passes 50."""
+    runs = tmp_path / "results" / "runs"
+    with monkeypatch.context() as patch:
+        patch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)
+        _trained_to(make_run(runs, "cheetah_dbc", 0)[0], range(0, 60, 10))
+        export_records(runs)
+    shutil.rmtree(runs)  # the machine that held the run dir is gone
+    restarted = _trained_to(make_run(runs, "cheetah_dbc", 0)[0], range(0, 30, 10))
+    records = tmp_path / "results" / "records"
+    assert export_records(runs).partial == [KEY]
+    assert read_json(records / PENDING_DIR / KEY / "pending.json")["iteration"] == 50, "the furthest curve stays"
+    [plan] = plan_profile("quick", str(runs), only=["cheetah_dbc"], rates={})
+    assert (plan.trials[0].resumes_at, plan.trials[0].lost_at) == (20, 50)
+
+    _trained_to(restarted, range(30, 70, 10))
+    assert export_records(runs).partial == [KEY]
+    assert not (records / PENDING_DIR).exists(), "past the earlier attempt, the partial record holds the curve"

@@ -15,7 +15,7 @@ from typing import Any
 from plls_bench.files import read_json
 from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, MAX_PARTIAL_BYTES,
                                        PART_SUFFIX, PARTIAL_DIR, PARTIAL_MARKER, PENDING_DIR, PENDING_MARKER,
-                                       REPR_KINDS, records_dir_for)
+                                       REPR_KINDS, done_record_hash, other_done_record, records_dir_for)
 from plls_bench.records.pending import pending_marker, reached_iteration, recorded_attempt
 from plls_bench.runner_specs import RUNNERS
 from plls_bench.runs import STATUS_DONE, iter_run_dirs
@@ -203,10 +203,10 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
             continue
         state, ours = (read_json(run_dir / "status.json") or {}).get("state"), written.get("config_hash")
-        if state != STATUS_DONE and ours is not None and _done_record_hash(out / key) == ours:
+        if state != STATUS_DONE and ours is not None and done_record_hash(out / key) == ours:
             done.skipped.append(f"{key}: status {state} (its record holds this trial, finished)")
             continue  # a stale copy of a trial finished elsewhere: a partial record would only shadow it
-        other = None if replace or state != STATUS_DONE else _other_done_record(out / key, ours)
+        other = None if replace or state != STATUS_DONE else other_done_record(out / key, ours)
         if state == STATUS_DONE and other is None:
             _count(done, key, export_run(run_dir, out / key), done.written)
             for kind in (PARTIAL_DIR, PENDING_DIR):  # the finished record replaces them
@@ -218,7 +218,8 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
                 _count_pending(done, key, export_pending(run_dir, out / PENDING_DIR / key, carried, ours))
                 continue
             _count(done, key, carried, done.partial)
-            _remove_unfinished(out, PENDING_DIR, key)  # the partial record holds its metrics too
+            if (recorded_attempt(out / PENDING_DIR / key, ours) or 0) <= (reached_iteration(run_dir) or 0):
+                _remove_unfinished(out, PENDING_DIR, key)  # the partial record holds its metrics too
             if other is not None:
                 done.held.append(f"{key}: its record holds a finished trial of another config ({other}); "
                                  "held as a partial record (--replace replaces the record)")
@@ -231,24 +232,6 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         if result is not None:
             _count(done, f"{kind}/{name}", result, done.artifacts, unchanged=False)
     return done
-
-
-def _done_record_hash(target: Path) -> str | None:
-    """The config hash of the finished record at ``target`` ("None" if it names none); None when
-    there is no finished record."""
-    if (read_json(target / "status.json") or {}).get("state") != STATUS_DONE:
-        return None
-    return str((read_json(target / "config.json") or {}).get("config_hash"))
-
-
-def _other_done_record(target: Path, ours: str | None) -> str | None:
-    """``budget <name>, config <hash>`` of a finished record at ``target`` whose config hash is not
-    ``ours`` (the run's); None when there is none (or it is this run's own)."""
-    theirs = _done_record_hash(target)
-    if theirs is None or theirs == ours:
-        return None
-    budget = (((read_json(target / "config.json") or {}).get("config") or {}).get("budget") or {}).get("name")
-    return f"budget {budget}, config {theirs}"
 
 
 def _count(done: Exported, key: str, result: tuple[bool, list[str]], written: list[str],

@@ -16,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from plls_bench.files import read_json
-from plls_bench.runs import Run
+from plls_bench.runs import STATUS_DONE, Run
 
 # One cap for every committed file: a CarRacing V_s model.pt is 6.9 MiB and a CarRacing PPO
 # checkpoint (CNN weights with Adam's moments) 9.8 MiB; a DBC actor ~13 MiB (README "Results collector").
@@ -100,3 +100,21 @@ def runs_dir_of(run_dir: str | Path, recorded: str) -> str:
     record made on another machine or checkout loads anywhere; ``recorded`` off the layout."""
     root = layout_root(run_dir)
     return recorded if root is None else str(root)
+
+
+def done_record_hash(target: Path) -> str | None:
+    """The config hash of the finished record at ``target`` ("None" if it names none); None when
+    there is no finished record."""
+    if (read_json(target / "status.json") or {}).get("state") != STATUS_DONE:
+        return None
+    return str((read_json(target / "config.json") or {}).get("config_hash"))
+
+
+def other_done_record(target: Path, ours: str | None) -> str | None:
+    """``budget <name>, config <hash>`` of a finished record at ``target`` whose config hash is not
+    ``ours`` (the run's); None when there is none (or it is this run's own)."""
+    theirs = done_record_hash(target)
+    if theirs is None or theirs == ours:
+        return None
+    budget = (((read_json(target / "config.json") or {}).get("config") or {}).get("budget") or {}).get("name")
+    return f"budget {budget}, config {theirs}"

@@ -10,7 +10,8 @@ run resumes from it, the collector judges nothing from it, and the dry run names
 has to start again (``reproduce --dry-run``).
 
 One rule keeps the furthest evidence: a run that is behind the pending record of its own config
-(a trial restarted from zero on a new machine) leaves the record as it is until it passes it.
+(a trial restarted from zero on a new machine) leaves the record as it is until it passes it,
+whether the run itself goes to a pending or a partial record.
 """
 from __future__ import annotations
 
