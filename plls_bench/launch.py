@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import os
 import signal
 import subprocess
 import sys
@@ -132,36 +133,52 @@ class Slot:
     least_left: float  # seconds it needs left to the deadline to start (start_minutes)
 
 
-def simulate_queue(plans: list[PresetPlan], jobs: int, order: str = "shortest") -> list[Slot]:
+def trial_threads(plan: PresetPlan, trial: Trial, launcher: str) -> int:
+    """The cores a trial keeps busy, which turn its estimated CPU seconds into wall seconds: one
+    under ``joblib`` (:func:`launcher_overrides` gives each trial one torch thread); otherwise a
+    policy learner's own ``torch_threads`` (0: torch's default, one per core). Other runners count
+    one: collection is bound by its env, and V_s / V_a fits and studies set their own threads. The
+    rates are CPU seconds at the preset's threads (bench/throughput.json), so a learner given both
+    cores of a 2-core machine ends in about half its CPU time (pixel DBC alone at 2 threads:
+    0.57 s per agent step measured against 0.63 s by this estimate)."""
+    if launcher == "joblib" or not runner_spec(plan.runner).trains_policy or trial.cfg is None:
+        return 1
+    return trial.cfg.torch_threads if trial.cfg.torch_threads > 0 else (os.cpu_count() or 1)
+
+
+def simulate_queue(plans: list[PresetPlan], jobs: int, order: str = "shortest", launcher: str = "joblib") -> list[Slot]:
     """The queue over ``plans`` as estimated: each stage's trials started in :func:`queue_order` on
     the first of ``jobs`` slots to free, stages one after another, each trial taking its estimated
-    seconds (``PresetPlan.trial_seconds``; unknown ones count 0)."""
+    seconds (``PresetPlan.trial_seconds``; unknown ones count 0) over its :func:`trial_threads`
+    under ``launcher``."""
     slots, stage_start = [], 0.0
     for stage_plans in stages(plans):
         free = [stage_start] * max(jobs, 1)  # the time each job frees up, a heap
         for i, trial in queue_order(stage_plans, order):
             start = heapq.heappop(free)
-            end = start + stage_plans[i].trial_seconds.get(trial.seed, 0.0)
+            cpu_seconds = stage_plans[i].trial_seconds.get(trial.seed, 0.0)
+            end = start + cpu_seconds / trial_threads(stage_plans[i], trial, launcher)
             heapq.heappush(free, end)
             slots.append(Slot(stage_plans[i].label, trial, start, end, 60.0 * start_minutes(stage_plans[i], trial)))
         stage_start = max(free)
     return slots
 
 
-def estimated_wall_seconds(plans: list[PresetPlan], jobs: int, order: str = "shortest") -> float:
+def estimated_wall_seconds(plans: list[PresetPlan], jobs: int, order: str = "shortest",
+                           launcher: str = "joblib") -> float:
     """Wall-clock seconds of the queue (:func:`simulate_queue`). Not total / jobs: 3 trials on 2
     jobs leave the last to run alone, so the longest chain, not the average, sets the wall time."""
-    return max((slot.end for slot in simulate_queue(plans, jobs, order)), default=0.0)
+    return max((slot.end for slot in simulate_queue(plans, jobs, order, launcher)), default=0.0)
 
 
 def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float,
-                     order: str = "shortest") -> list[str]:
+                     order: str = "shortest", launcher: str = "joblib") -> list[str]:
     """What ``--stop-after-min`` leaves by the estimates: how many trials end, are stopped at a
     checkpoint (each with about how far its training gets) or never start."""
     if any(p.missing_rates for p in plans):
         return [f"by --stop-after-min {stop_after_min:g}: no outlook, some trials have no estimate"]
     deadline = 60.0 * stop_after_min
-    slots = simulate_queue(plans, jobs, order)
+    slots = simulate_queue(plans, jobs, order, launcher)
     late = [s for s in slots if s.start > deadline - s.least_left]
     stopped = [s for s in slots if s not in late and s.end > deadline]
     lines = [f"by --stop-after-min {stop_after_min:g}: {len(slots) - len(late) - len(stopped)} trial(s) end, "

@@ -22,7 +22,8 @@ from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
-from plls_bench.launch import QUEUE_ORDERS, deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans
+from plls_bench.launch import (QUEUE_ORDERS, deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans,
+                               trial_threads)
 from plls_bench.plan import PresetPlan, Trial, plan_profile, plan_sweep
 from plls_bench.rates import THROUGHPUT_FILE, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
@@ -39,9 +40,10 @@ DEFAULT_RUNS = "results/runs"
 EXIT_INTERRUPTED = 130
 
 
-def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0, order: str = "shortest") -> str:
+def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0, order: str = "shortest",
+                launcher: str = "joblib") -> str:
     """The plan as a table, with estimated compute from measured throughput, and what a
-    ``--stop-after-min`` deadline leaves of it."""
+    ``--stop-after-min`` deadline leaves of it under ``launcher``."""
     width = max([28, *(len(p.label) for p in plans)])
     rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'recorded':>8s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
     total, unknown = 0.0, set()
@@ -61,11 +63,13 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
     rerun = "run again (--rerun-recorded)" if plans and not plans[0].count_records else "counted as done"
     rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "
                 f"{recorded} recorded in committed records, {rerun}")
+    threads = max((trial_threads(p, t, launcher) for p in plans for t in p.pending), default=1)
     rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
-                f"about {estimated_wall_seconds(plans, jobs, order) / 3600:.1f} h wall with {jobs} parallel job(s), "
-                f"trials started in the launch queue's order ({order} estimated time left first)")
+                f"about {estimated_wall_seconds(plans, jobs, order, launcher) / 3600:.1f} h wall with {jobs} "
+                f"parallel job(s) of up to {threads} thread(s) each, trials started in the launch queue's order "
+                f"({order} estimated time left first)")
     if stop_after_min > 0:
-        rows += deadline_outlook(plans, jobs, stop_after_min, order)
+        rows += deadline_outlook(plans, jobs, stop_after_min, order, launcher)
     if unknown:
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
@@ -264,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = args.jobs if args.launcher == "joblib" else 1
     print(f"[reproduce] profile={args.profile} launcher={args.launcher} runs={args.runs}")
     print(records_line(args.runs))
-    print(format_plan(plans, jobs, args.stop_after_min, args.queue_order), flush=True)
+    print(format_plan(plans, jobs, args.stop_after_min, args.queue_order, args.launcher), flush=True)
     if args.dry_run:
         return 0
     overrides = launcher_overrides(args.launcher, args.hydra)

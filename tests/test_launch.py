@@ -2,6 +2,7 @@
 ends, across presets, and stages keep artifacts before the presets that read them."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -12,8 +13,9 @@ import pytest
 from plls_bench import launch
 from plls_bench.launch import run_queue
 from plls_bench.plan import PresetPlan, Trial
+from plls_bench.reproduce import format_plan
 from plls_bench.runs import STATUS_FAILED, STATUS_STOPPED, Run
-from tests.conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT, compose_preset
 
 
 def waits_for(flag: Path) -> list[str]:
@@ -137,6 +139,28 @@ def test_the_wall_estimate_follows_the_queue_not_the_average(tmp_path: Path) -> 
     assert launch.estimated_wall_seconds([sac], jobs=3) == pytest.approx(10.0)
     data = PresetPlan("data", "cheetah", "collect", [trial(0, 0)], 0, trial_seconds={0: 4.0})
     assert launch.estimated_wall_seconds([data, sac], jobs=2) == pytest.approx(16.0)
+
+
+def test_the_local_launcher_s_wall_estimate_counts_a_learner_s_torch_threads(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The local launcher leaves pixel DBC at torch's default threads (one per core), so on 2 cores
+    its 10 CPU-seconds take 5 wall seconds; under joblib each trial gets one thread, and a preset
+    that sets one thread (MountainCar PPO) or a runner that is no learner (collection) keeps its
+    CPU seconds as wall seconds."""
+    monkeypatch.setattr(launch.os, "cpu_count", lambda: 2)
+    def plan(experiment: str, runner: str, seconds: float) -> PresetPlan:
+        cfg = compose_preset(experiment, tmp_path)
+        return PresetPlan(experiment, cfg.env.name, runner, [Trial(0, tmp_path / experiment, done=False, cfg=cfg)],
+                          100, trial_seconds={0: seconds})
+
+    dbc, ppo = plan("cheetah_dbc", "dbc", 10.0), plan("mountaincar_ppo", "ppo", 10.0)
+    assert (dbc.trials[0].cfg.torch_threads, ppo.trials[0].cfg.torch_threads) == (0, 1)
+    assert launch.estimated_wall_seconds([dbc], jobs=1, launcher="local") == pytest.approx(5.0)
+    assert launch.estimated_wall_seconds([dbc], jobs=1, launcher="joblib") == pytest.approx(10.0)
+    assert launch.estimated_wall_seconds([ppo], jobs=1, launcher="local") == pytest.approx(10.0)
+    collect = dataclasses.replace(dbc, runner="collect")
+    assert launch.estimated_wall_seconds([collect], jobs=1, launcher="local") == pytest.approx(10.0)
+    assert "about 0.0 h wall with 1 parallel job(s) of up to 2 thread(s) each" in format_plan([dbc], 1, launcher="local")
 
 
 def test_with_estimates_the_queue_takes_the_shortest_time_left_first(tmp_path: Path) -> None:
