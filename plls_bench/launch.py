@@ -141,7 +141,7 @@ def trial_threads(plan: PresetPlan, trial: Trial, launcher: str) -> int:
     rates are CPU seconds at the preset's threads (bench/throughput.json), so a learner given both
     cores of a 2-core machine ends in about half its CPU time (pixel DBC alone at 2 threads:
     0.57 s per agent step measured against 0.63 s by this estimate)."""
-    if launcher == "joblib" or not runner_spec(plan.runner).trains_policy or trial.cfg is None:
+    if launcher == "joblib" or not runner_spec(plan.runner).trains_policy:
         return 1
     return trial.cfg.torch_threads if trial.cfg.torch_threads > 0 else (os.cpu_count() or 1)
 
