@@ -1,7 +1,8 @@
 """An unfinished DBC-runner trial carried across machines as a partial record: state SAC's
 checkpoint (``dbc.pt`` with optimisers, over the per-file cap, goes in parts; its replay chunks
 travel with it), and what is refused: a record over the whole-record cap (a paper-budget pixel DBC's), or parts
-that no longer join to the file they were cut from."""
+that no longer join to the file they were cut from; a checkpoint committed while the export reads
+it is read again."""
 from __future__ import annotations
 
 import logging
@@ -15,9 +16,11 @@ from plls_bench.records import export
 from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR
 from plls_bench.records.restore import seed_from_partial
+from plls_bench.records.snapshot import SNAPSHOT_TRIES, checkpoint_snapshot
 from plls_bench.runner import execute
+from plls_bench.runner_specs import ResumeFiles
 from plls_bench.runs import Run, run_dir_path
-from plls_bench.train import dbc
+from plls_bench.train import dbc, dbc_state
 from tests.conftest import compose_preset
 from tests.interrupting import interrupted, rows
 from tests.synthetic_runs import make_run
@@ -105,6 +108,50 @@ def test_parts_that_do_not_join_to_the_recorded_file_are_refused(tmp_path: Path,
     with pytest.raises(RuntimeError, match="the parts of checkpoints/dbc.pt do not join to the file it recorded"):
         seed_from_partial(run.path, runs, cfg_hash)
     assert not (run.path / "checkpoints" / "dbc.pt").exists(), "no checkpoint from a damaged record"
+
+
+def _committing(run: Run, commits: list[str]) -> ResumeFiles:
+    """DBC's ``committed_files`` that, at its calls listed in ``commits`` (one string per call:
+    "" nothing, "chunk" a new replay chunk with its checkpoint, "pt" a rewritten ``dbc.pt``
+    alone), first commits a newer checkpoint, as a run still training does while it is exported."""
+    calls = iter(commits)
+
+    def listing(run_path: Path) -> tuple[list[str], int] | None:
+        change = next(calls, "")
+        if change == "chunk":
+            end = read_json(run.path / "checkpoints" / "progress.json")["replay_written"] + 9
+            run.log("train", {"iteration": end - 1})
+            run.write_bytes(f"checkpoints/replay/chunk_{end - 9:012d}_{end:012d}.npz", b"n" * 1000)
+        if change:
+            run.write_bytes("checkpoints/dbc.pt", change.encode() * 100 + (run.path / "checkpoints" / "dbc.pt").read_bytes())
+        if change == "chunk":
+            run.write_json("checkpoints/progress.json", {"iteration": end - 1, "agent_steps": end - 1, "replay_written": end})
+        return dbc_state.committed_files(run_path)
+    return listing
+
+
+@pytest.mark.parametrize("change", ["chunk", "pt"])
+def test_a_checkpoint_committed_while_it_is_read_is_read_again(tmp_path: Path, change: str) -> None:
+    """The first read sees the checkpoint of iteration 50; before it ends the run commits another
+    (a new chunk, dbc.pt and progress, or dbc.pt alone): the snapshot is the second, whole."""
+    run = _checkpoint(make_run(tmp_path / "runs", "cheetah_dbc", 0)[0], 2**12)
+    snapshot = checkpoint_snapshot(run.path, _committing(run, ["", change]), 2**20)
+    assert not isinstance(snapshot, str), snapshot
+    contents, files, iteration = snapshot
+    assert contents["checkpoints/dbc.pt"] == (run.path / "checkpoints" / "dbc.pt").read_bytes(), "the newer dbc.pt"
+    assert files[-1] == "checkpoints/dbc.pt" and set(files) <= set(contents)
+    chunks = sorted(f for f in files if f.startswith("checkpoints/replay/"))
+    if change == "chunk":
+        assert iteration == 59 and chunks[-1].endswith("_000000000060.npz"), "the chunk dbc.pt needs came too"
+        assert b'"iteration": 59' in contents["metrics/train.jsonl"], "and the rows up to it"
+    else:
+        assert iteration == 50 and len(chunks) == 1
+
+
+def test_a_checkpoint_that_keeps_changing_is_not_carried(tmp_path: Path) -> None:
+    run = _checkpoint(make_run(tmp_path / "runs", "cheetah_dbc", 0)[0], 2**12)
+    reason = checkpoint_snapshot(run.path, _committing(run, ["", "pt"] * SNAPSHOT_TRIES), 2**20)
+    assert reason == f"its checkpoint changed during each of {SNAPSHOT_TRIES} reads (a run still training); export after it stops"
 
 
 @pytest.mark.slow

@@ -17,12 +17,9 @@ from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE
                                        PART_SUFFIX, PARTIAL_DIR, PARTIAL_MARKER, PENDING_DIR, PENDING_MARKER,
                                        REPR_KINDS, done_record_hash, other_done_record, records_dir_for)
 from plls_bench.records.pending import pending_marker, reached_iteration, recorded_attempt
+from plls_bench.records.snapshot import Content, checkpoint_snapshot, record_files
 from plls_bench.runner_specs import RUNNERS
 from plls_bench.runs import STATUS_DONE, iter_run_dirs
-
-RECORD_GLOBS = ("config.json", "status.json", "provenance.json", "metrics/*.jsonl", "metrics/*.json",
-                "samples/*.npz", "studies/*.npz", "filmstrip/filmstrip.json", "filmstrip/frames.npz")
-Content = Path | bytes  # a file of the run, or bytes made from it
 
 
 @dataclass
@@ -39,13 +36,6 @@ class Exported:
         return (f"{len(self.written)} written, {self.unchanged} unchanged, {len(self.partial)} partial, "
                 f"{len(self.pending)} pending, {len(self.held)} held, {len(self.artifacts)} artifact(s) added, "
                 f"{len(self.skipped)} skipped")
-
-
-def record_files(run_dir: Path) -> list[Path]:
-    """The collector's files of ``run_dir`` that belong in its record (relative paths, sorted)."""
-    found = {path.relative_to(run_dir) for pattern in RECORD_GLOBS for path in run_dir.glob(pattern)
-             if path.is_file()}
-    return sorted(found)
 
 
 def policy_files(run_dir: Path, runner: str | None) -> dict[str, Content]:
@@ -123,15 +113,10 @@ def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple
     spec = RUNNERS.get(config.get("runner") or "")
     if spec is None or spec.load_resume_files is None:
         return spec.not_carried if spec else f"runner {config.get('runner')!r} is not registered"
-    found = spec.load_resume_files()(run_dir)
-    if found is None:
-        return "no checkpoint to carry"
-    files, iteration = found
-    contents: dict[str, Content] = {str(rel): run_dir / rel for rel in record_files(run_dir)}
-    contents.update({rel: run_dir / rel for rel in files})
-    total = sum(_size(content) for content in contents.values())
-    if total > MAX_PARTIAL_BYTES:  # a run resumed without one of them would lose its rows or its checkpoint
-        return f"{total / 2**20:.1f} MiB to carry, over the {MAX_PARTIAL_BYTES // 2**20} MiB of a partial record"
+    snapshot = checkpoint_snapshot(run_dir, spec.load_resume_files(), MAX_PARTIAL_BYTES)
+    if isinstance(snapshot, str):
+        return snapshot
+    contents, files, iteration = snapshot
     restored = [rel for rel in contents if rel != "status.json"]
     split: dict[str, dict[str, Any]] = {}
     for rel in [rel for rel, content in contents.items() if _size(content) > MAX_FILE_BYTES]:
