@@ -45,12 +45,14 @@ MIN_START_MINUTES = 2.0
 QUEUE_ORDERS = ("shortest", "longest")
 
 
-def start_minutes(plan: PresetPlan, trial: Trial) -> float:
-    """The least time left to the deadline that ``trial`` may start with: MIN_START_MINUTES, or
-    longer if it is estimated to stop first further off (``PresetPlan.first_stop_seconds``): a
-    learner at its first checkpoint (one CNN PPO iteration on 2 cores is about 10 minutes; started
-    with 4 left, it overran the deadline by 6), any other runner at its end."""
-    return max(MIN_START_MINUTES, plan.first_stop_seconds.get(trial.seed, 0.0) / 60.0)
+def start_minutes(plan: PresetPlan, trial: Trial, launcher: str = "joblib") -> float:
+    """The least time left to the deadline that ``trial`` may start with under ``launcher``:
+    MIN_START_MINUTES, or longer if it is estimated to stop first further off
+    (``PresetPlan.first_stop_seconds``, CPU seconds over its :func:`trial_threads`): a learner at
+    its first checkpoint (one CNN PPO iteration on 2 cores is about 10 minutes; started with 4
+    left, it overran the deadline by 6), any other runner at its end."""
+    cpu_seconds = plan.first_stop_seconds.get(trial.seed, 0.0)
+    return max(MIN_START_MINUTES, cpu_seconds / trial_threads(plan, trial, launcher) / 60.0)
 
 
 def launcher_overrides(launcher: str, extra: list[str]) -> list[str]:
@@ -76,11 +78,12 @@ def multirun_command(plan: PresetPlan, profile: str, runs_dir: str, overrides: l
 
 def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int = 1,
               per_trial: bool = True, time_limit_min: float = 0.0, stop_after_min: float = 0.0,
-              order: str = "shortest") -> list[str]:
+              order: str = "shortest", launcher: str = "joblib") -> list[str]:
     """Launch each preset's pending trials, stage by stage; returns the presets with a failed trial.
     ``per_trial``: the queue of one-trial multiruns, ``jobs`` at a time in ``order``
-    (:data:`QUEUE_ORDERS`), ending by ``stop_after_min`` minutes from now (0: no deadline); else one
-    multirun per preset (SLURM). ``time_limit_min``: each trial's own limit (0: none)."""
+    (:data:`QUEUE_ORDERS`), ending by ``stop_after_min`` minutes from now (0: no deadline; the
+    ``launcher``'s threads per trial size what a trial needs left to start); else one multirun per
+    preset (SLURM). ``time_limit_min``: each trial's own limit (0: none)."""
     deadline = time.monotonic() + 60.0 * stop_after_min if stop_after_min > 0 else None
     failed: list[str] = []
     for stage_plans in stages(plans):
@@ -89,7 +92,7 @@ def run_plans(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: l
                 print(f"[reproduce] {plan.label}: all {len(plan.trials)} trial(s) already done", flush=True)
         todo = [p for p in stage_plans if p.pending]
         if per_trial:
-            failed += _run_queued(todo, profile, runs_dir, overrides, jobs, time_limit_min, deadline, order)
+            failed += _run_queued(todo, profile, runs_dir, overrides, jobs, time_limit_min, deadline, order, launcher)
             continue
         for plan in todo:
             start = time.perf_counter()
@@ -159,7 +162,8 @@ def simulate_queue(plans: list[PresetPlan], jobs: int, order: str = "shortest", 
             cpu_seconds = stage_plans[i].trial_seconds.get(trial.seed, 0.0)
             end = start + cpu_seconds / trial_threads(stage_plans[i], trial, launcher)
             heapq.heappush(free, end)
-            slots.append(Slot(stage_plans[i].label, trial, start, end, 60.0 * start_minutes(stage_plans[i], trial)))
+            least_left = 60.0 * start_minutes(stage_plans[i], trial, launcher)
+            slots.append(Slot(stage_plans[i].label, trial, start, end, least_left))
         stage_start = max(free)
     return slots
 
@@ -192,14 +196,15 @@ def deadline_outlook(plans: list[PresetPlan], jobs: int, stop_after_min: float,
 
 
 def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides: list[str], jobs: int,
-                time_limit_min: float, deadline: float | None, order: str = "shortest") -> list[str]:
+                time_limit_min: float, deadline: float | None, order: str = "shortest",
+                launcher: str = "joblib") -> list[str]:
     """Every pending trial of ``plans`` as its own multirun, ``jobs`` at a time, in
     :func:`queue_order`."""
     pending = queue_order(plans, order)
 
     def launcher(i: int, trial: Trial) -> Launch:
         def argv() -> list[str] | None:
-            limit = _limit_at_start(time_limit_min, deadline, start_minutes(plans[i], trial))
+            limit = _limit_at_start(time_limit_min, deadline, start_minutes(plans[i], trial, launcher))
             return None if limit is None else multirun_command(plans[i], profile, runs_dir, overrides, [trial.seed], limit)
         return argv
 

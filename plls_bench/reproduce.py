@@ -276,7 +276,8 @@ def main(argv: list[str] | None = None) -> int:
         with sigterm_raises():  # SIGTERM to reproduce alone reaches the trials it started (launch.run_queue)
             failed = run_plans(plans, args.profile, args.runs, overrides, jobs=jobs,
                                per_trial=args.launcher != "slurm", time_limit_min=args.time_limit_min,
-                               stop_after_min=args.stop_after_min, order=args.queue_order)
+                               stop_after_min=args.stop_after_min, order=args.queue_order,
+                               launcher=args.launcher)
             failed += film_policies(plans)
     except KeyboardInterrupt:
         print("\n[reproduce] interrupted: finished runs are kept and an interrupted trial resumes "

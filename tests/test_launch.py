@@ -141,12 +141,13 @@ def test_the_wall_estimate_follows_the_queue_not_the_average(tmp_path: Path) -> 
     assert launch.estimated_wall_seconds([data, sac], jobs=2) == pytest.approx(16.0)
 
 
-def test_the_local_launcher_s_wall_estimate_counts_a_learner_s_torch_threads(
+def test_the_local_launcher_s_estimates_count_a_learner_s_torch_threads(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The local launcher leaves pixel DBC at torch's default threads (one per core), so on 2 cores
     its 10 CPU-seconds take 5 wall seconds; under joblib each trial gets one thread, and a preset
     that sets one thread (MountainCar PPO) or a runner that is no learner (collection) keeps its
-    CPU seconds as wall seconds."""
+    CPU seconds as wall seconds. The time a trial needs left to start before a deadline (its
+    first checkpoint) is counted the same way."""
     monkeypatch.setattr(launch.os, "cpu_count", lambda: 2)
     def plan(experiment: str, runner: str, seconds: float) -> PresetPlan:
         cfg = compose_preset(experiment, tmp_path)
@@ -161,6 +162,12 @@ def test_the_local_launcher_s_wall_estimate_counts_a_learner_s_torch_threads(
     collect = dataclasses.replace(dbc, runner="collect")
     assert launch.estimated_wall_seconds([collect], jobs=1, launcher="local") == pytest.approx(10.0)
     assert "about 0.0 h wall with 1 parallel job(s) of up to 2 thread(s) each" in format_plan([dbc], 1, launcher="local")
+    # its first checkpoint too: 600 CPU-seconds away are 5 minutes on 2 threads, 10 on one
+    dbc.first_stop_seconds = {0: 600.0}
+    assert launch.start_minutes(dbc, dbc.trials[0], "local") == pytest.approx(5.0)
+    assert launch.start_minutes(dbc, dbc.trials[0], "joblib") == pytest.approx(10.0)
+    assert "1 trial(s) end" in launch.deadline_outlook([dbc], 1, 6, launcher="local")[0]
+    assert "1 do not start" in launch.deadline_outlook([dbc], 1, 6, launcher="joblib")[0]
 
 
 def test_with_estimates_the_queue_takes_the_shortest_time_left_first(tmp_path: Path) -> None:
