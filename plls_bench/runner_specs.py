@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Literal, get_args
 
+from plls_bench.records.snapshot import ResumeFiles  # run dir -> its last checkpoint's files and iteration
+
 if TYPE_CHECKING:  # types only: the config root and the run dir must not be imported at load time
     from plls_bench.config import Config
     from plls_bench.metrics import Lookup
@@ -28,8 +30,6 @@ if TYPE_CHECKING:  # types only: the config root and the run dir must not be imp
 RunFn = Callable[["Config", "Run"], None]
 # What a committed record carries of a run (``records/export.py``):
 PolicyFiles = Callable[[Path], "dict[str, Path | bytes]"]  # run dir -> the files that rebuild its last policy
-ResumeFiles = Callable[[Path], "tuple[list[str], int] | None"]  # run dir -> (its last checkpoint's files,
-#                                                                  commit file last; its iteration) or None
 CheckpointsAt = Literal["iteration", "episode"]  # when a time-limited runner checkpoints
 
 

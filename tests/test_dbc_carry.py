@@ -16,9 +16,8 @@ from plls_bench.records import export
 from plls_bench.records.export import export_records
 from plls_bench.records.layout import PARTIAL_DIR
 from plls_bench.records.restore import seed_from_partial
-from plls_bench.records.snapshot import SNAPSHOT_TRIES, checkpoint_snapshot
+from plls_bench.records.snapshot import SNAPSHOT_TRIES, ResumeFiles, checkpoint_snapshot
 from plls_bench.runner import execute
-from plls_bench.runner_specs import ResumeFiles
 from plls_bench.runs import Run, run_dir_path
 from plls_bench.train import dbc, dbc_state
 from tests.conftest import compose_preset

@@ -2,13 +2,15 @@
 checkpoint read consistently while the run may still be writing the next one."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-
-from plls_bench.runner_specs import ResumeFiles
 
 RECORD_GLOBS = ("config.json", "status.json", "provenance.json", "metrics/*.jsonl", "metrics/*.json",
                 "samples/*.npz", "studies/*.npz", "filmstrip/filmstrip.json", "filmstrip/frames.npz")
 Content = Path | bytes  # a file of the run, or bytes made from it
+# run dir -> its last checkpoint's files (commit file last) and iteration; a runner's
+# ``RunnerSpec.load_resume_files()``
+ResumeFiles = Callable[[Path], "tuple[list[str], int] | None"]
 # Reads of an unfinished run's checkpoint before its export gives up (checkpoint_snapshot): a
 # checkpoint lands every few minutes and a read takes about a second, so a second read succeeds.
 SNAPSHOT_TRIES = 3
