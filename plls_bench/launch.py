@@ -202,14 +202,14 @@ def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides:
     :func:`queue_order`."""
     pending = queue_order(plans, order)
 
-    def launcher(i: int, trial: Trial) -> Launch:
+    def launch_of(i: int, trial: Trial) -> Launch:
         def argv() -> list[str] | None:
             limit = _limit_at_start(time_limit_min, deadline, start_minutes(plans[i], trial, launcher))
             return None if limit is None else multirun_command(plans[i], profile, runs_dir, overrides, [trial.seed], limit)
         return argv
 
     start = time.perf_counter()
-    codes = run_queue([((i, t.seed), launcher(i, t)) for i, t in pending], jobs)
+    codes = run_queue([((i, t.seed), launch_of(i, t)) for i, t in pending], jobs)
     failed: list[str] = []
     for i, plan in enumerate(plans):
         failed += _report(plan, [codes[(i, t.seed)] for t in plan.pending], time.perf_counter() - start)

@@ -168,6 +168,12 @@ def test_the_local_launcher_s_estimates_count_a_learner_s_torch_threads(
     assert launch.start_minutes(dbc, dbc.trials[0], "joblib") == pytest.approx(10.0)
     assert "1 trial(s) end" in launch.deadline_outlook([dbc], 1, 6, launcher="local")[0]
     assert "1 do not start" in launch.deadline_outlook([dbc], 1, 6, launcher="joblib")[0]
+    started: dict[str, bool] = {}  # and so does the queue itself, 6 minutes before its deadline
+    for name in ("local", "joblib"):
+        monkeypatch.setattr(launch, "run_queue", lambda commands, jobs: {key: started.setdefault(name, go() is not None)
+                                                                         for key, go in commands})
+        launch.run_plans([dbc], "quick", str(tmp_path), [], stop_after_min=6, launcher=name)
+    assert started == {"local": True, "joblib": False}
 
 
 def test_with_estimates_the_queue_takes_the_shortest_time_left_first(tmp_path: Path) -> None:
