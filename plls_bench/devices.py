@@ -58,12 +58,30 @@ def device_name(device: torch.device) -> str:
     return f"{cpu_model()}, {os.cpu_count()} cores"
 
 
-def cpu_model() -> str:
-    """The CPU's marketing name from /proc/cpuinfo (Linux), else what :mod:`platform` knows."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine() or "unknown CPU"
+def cpu_model(cpuinfo: str | None = None) -> str:
+    """The CPU's marketing name, with the generation and vector units that set its speed.
+
+    A name alone can hide a 4x gap: "AMD EPYC" is both a Zen 1 (family 23, AVX2) and a Zen 4
+    (family 25, AVX-512) VM, and CNN training differs by that much between them. ``cpuinfo`` is
+    the text of /proc/cpuinfo (read here when None); off Linux, what :mod:`platform` knows. No
+    commas: machine lines are split on them (:func:`plls_bench.rates.rate_machines`)."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            cpuinfo = ""
+    fields: dict[str, str] = {}
+    for line in cpuinfo.splitlines():
+        key, sep, value = line.partition(":")
+        if not sep:
+            if fields:  # the first processor's block is enough
+                break
+            continue
+        fields.setdefault(key.strip(), value.strip())
+    name = fields.get("model name") or platform.processor() or platform.machine() or "unknown CPU"
+    flags = set(fields.get("flags", "").split())
+    units = next((label for flag, label in (("avx512f", "AVX-512"), ("avx2", "AVX2"), ("sse4_2", "SSE4.2"))
+                  if flag in flags), None)
+    detail = [f"family {fields['cpu family']} model {fields.get('model', '?')}"] if "cpu family" in fields else []
+    detail += [units] if units else []
+    return f"{name} ({'; '.join(detail)})" if detail else name

@@ -11,7 +11,7 @@ import torch
 from plls_bench.__main__ import validate_command_line
 from plls_bench.composition import config_from_dict
 from plls_bench.config import ConfigError
-from plls_bench.devices import resolve_device
+from plls_bench.devices import cpu_model, resolve_device
 from plls_bench.files import read_json
 from plls_bench.runner import execute
 from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
@@ -173,3 +173,17 @@ def test_git_state_of_paths_names_the_last_commit_that_changed_them(tmp_path: Pa
     (tmp_path / "code" / "f.txt").write_text("2")
     assert git_state(tmp_path, paths=("code",))["git_dirty"] is True
     assert git_state(tmp_path, ignore=("records",)) == {"git_sha": head, "git_dirty": True}
+
+
+ZEN1 = ("processor\t: 0\nvendor_id\t: AuthenticAMD\ncpu family\t: 23\nmodel\t\t: 1\n"
+        "model name\t: AMD EPYC\nflags\t\t: fpu sse4_2 avx avx2\n\n")
+ZEN4 = ZEN1.replace("23", "25").replace("model\t\t: 1", "model\t\t: 17").replace("avx2", "avx2 avx512f avx512_bf16")
+
+
+def test_cpu_model_tells_apart_machines_that_share_a_name() -> None:
+    """Two VMs both named "AMD EPYC" trained the Cheetah CNN 4x apart: the description says why,
+    from the first processor's block only, and without commas (machine lines are split on them)."""
+    assert cpu_model(ZEN1 + ZEN4) == "AMD EPYC (family 23 model 1; AVX2)"
+    assert cpu_model(ZEN4) == "AMD EPYC (family 25 model 17; AVX-512)"
+    assert "," not in cpu_model(ZEN4)
+    assert cpu_model("model name\t: Some CPU\n") == "Some CPU"
