@@ -61,7 +61,7 @@ def device_name(device: torch.device) -> str:
 def cpu_model(cpuinfo: str | None = None) -> str:
     """The CPU's marketing name, with the generation and vector units that set its speed.
 
-    A name alone can hide a 4x gap: "AMD EPYC" is both a Zen 1 (family 23, AVX2) and a Zen 4
+    A name alone can hide a 3x gap: "AMD EPYC" is both a Zen 1 (family 23, AVX2) and a Zen 4
     (family 25, AVX-512) VM, and CNN training differs by that much between them. ``cpuinfo`` is
     the text of /proc/cpuinfo (read here when None); off Linux, what :mod:`platform` knows. No
     commas: machine lines are split on them (:func:`plls_bench.rates.rate_machines`)."""
