@@ -1,9 +1,10 @@
 """Filmstrips of trained policies (Figs 11, 19, 22), recorded for ``python -m plls_bench.film RUN_DIR``.
 
-One evaluation episode of the run's last checkpointed policy (deterministic actions, through the
-same V_s / V_a wrappers as in training), reset with the trial's evaluation seed plus
-``filmstrip.episode`` (the episode PPO's evaluations test each time; DBC re-seeds every evaluation, so
-for it the filmed episode is none of its test episodes), with a frame every ``filmstrip.interval`` env frames and at its last step.
+One episode of the run's last checkpointed policy (deterministic actions, through the same
+V_s / V_a wrappers as in training), reset with the trial's evaluation seed plus ``filmstrip.episode``
+(the episode PPO's evaluations test each time; DBC re-seeds every evaluation, so for it the filmed
+episode is none of its test episodes), with a frame every ``filmstrip.interval`` env frames and at
+its last step.
 Settings: ``conf/filmstrip/<env>.yaml``. Writes ``<out>/frames.npz`` (``frames`` ``(k, H, W, 3)``
 uint8, ``frame_steps`` ``(k,)``) and then ``<out>/filmstrip.json`` (``interval``, ``frame_steps``,
 ``episode_return``, ``steps_to_goal``, ``checkpoint``, ...); ``<out>`` is ``RUN_DIR/filmstrip``,
