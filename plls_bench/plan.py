@@ -121,7 +121,8 @@ def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float
     """A sweep (``conf/sweep/``): its preset's own runs (the arm of its own value), then one plan
     per other value with that value's override; each value's V_a (or other artifact) is costed once."""
     plans = [_plan_preset(sweep.preset, profile, runs_dir, count_records, overrides)]
-    plans += [_plan_preset(sweep.preset, profile, runs_dir, count_records, (sweep.override(v), *overrides))
+    plans += [_plan_preset(sweep.preset, profile, runs_dir, count_records,
+                           (sweep.override(v), *sweep.plan_overrides, *overrides))
               for v in sweep.others]
     return _costed(plans, rates)
 
@@ -166,7 +167,7 @@ def _resume_point(cfg: Config, path: Path, partial: Path | None, cfg_hash: str) 
     spec = runner_spec(cfg.runner)
     if spec.load_resume_files is None:
         return 0, ""
-    if (Run(path).read_config() or {}).get("config_hash") == cfg_hash:
+    if Run(path).identity() == cfg_hash:
         local = spec.load_resume_files()(path)
         if local is not None:
             return local[1], "run dir"

@@ -113,7 +113,9 @@ def film_policies(plans: list[PresetPlan]) -> list[str]:
                   f"(seed={plan.trials[0].seed} first)", flush=True)
             continue
         trial, run = target
-        run_hash, cap = config_hash(trial.cfg), trial.cfg.budget.eval_max_steps
+        # the strip names the hash its run dir stored (filmstrip.py), which predates a hashing rule
+        # for runs made before it; _film_target has checked that run is this config's
+        run_hash, cap = (run.read_status() or {}).get("config_hash"), trial.cfg.budget.eval_max_steps
         if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
             print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
             continue

@@ -34,7 +34,7 @@ def execute(cfg: Config, run_dir: str | Path) -> str:
         log.info("already done with config %s: %s", cfg_hash, run.path)
         return "skipped"
     require_device(cfg.device)  # a SLURM job's node may lack the GPU asked for: say so, touch nothing
-    previous = (run.read_config() or {}).get("config_hash")
+    previous = run.identity()
     if previous is not None and previous != cfg_hash:
         moved = _supersede_keeping_hydra(run, cfg.runs_dir)
         log.warning("config changed (%s -> %s): previous run moved to %s", previous, cfg_hash, moved)

@@ -44,6 +44,11 @@ HASH_NEUTRAL_DEFAULTS: dict[str, Any] = {
 # Nested keys that change speed, never results (envpool steps each env on its own random stream,
 # whichever thread runs it): always left out of the hash, as torch_threads is.
 HASH_EXCLUDED_NESTED = ("env.backend_threads",)
+# Nested keys of the plan, not of a run: how many seeds a preset launches. Seed k computes the same
+# whatever the count, so adding trials to an arm leaves its finished trials done (issue: trial counts
+# raised to the verdict protocol's). Run dirs and records stored before this rule are identified by
+# recomputing their stored config's hash (:func:`stored_identity`), never by the hash they wrote.
+HASH_PLAN_KEYS = ("budget.trials",)
 # Config keys hashed at a fixed value, whatever the config says. ``device`` changes where a run
 # computes, not what it computes statistically (CPU and GPU kernels differ in rounding only), so it
 # must not tell runs apart. It was hashed as "cpu" before ``auto`` became the default; hashing that
@@ -74,25 +79,34 @@ def hashed_config(config: dict[str, Any], excluded: tuple[str, ...] = HASH_EXCLU
     :data:`HASH_EXCLUDED_NESTED`, :data:`HASH_PINNED_KEYS` at their pinned values and the keys of
     :data:`HASH_NEUTRAL_DEFAULTS` at their neutral values left out."""
     data = copy.deepcopy({k: HASH_PINNED_KEYS.get(k, v) for k, v in config.items() if k not in excluded})
-    for dotted in (*HASH_NEUTRAL_DEFAULTS, *HASH_EXCLUDED_NESTED):
+    for dotted in (*HASH_NEUTRAL_DEFAULTS, *HASH_EXCLUDED_NESTED, *HASH_PLAN_KEYS):
         *parents, leaf = dotted.split(".")
         node: Any = data
         for part in parents:
             node = node.get(part) if isinstance(node, dict) else None
         if isinstance(node, dict) and leaf in node and (
-                dotted in HASH_EXCLUDED_NESTED or node[leaf] == HASH_NEUTRAL_DEFAULTS[dotted]):
+                dotted not in HASH_NEUTRAL_DEFAULTS or node[leaf] == HASH_NEUTRAL_DEFAULTS[dotted]):
             del node[leaf]
     return data
 
 
 def unhashed_keys() -> tuple[str, ...]:
     """Every key that changes no result, dotted: excluded, nested-excluded and pinned alike."""
-    return (*HASH_EXCLUDED_KEYS, *HASH_EXCLUDED_NESTED, *HASH_PINNED_KEYS)
+    return (*HASH_EXCLUDED_KEYS, *HASH_EXCLUDED_NESTED, *HASH_PLAN_KEYS, *HASH_PINNED_KEYS)
 
 
 def config_hash(cfg: Any) -> str:
     """Identity of what a run computes: :func:`hashed_config` of its config."""
     return stable_hash(hashed_config(config_dict(cfg)))
+
+
+def stored_identity(run_dir: str | Path, fallback: str | None = None) -> str | None:
+    """The config hash, under today's rules, of the config a run dir (or a record of one) stored
+    in ``config.json``; ``fallback`` when it stores none. Recomputed rather than read, so a rule that
+    drops a key from the hash (:data:`HASH_PLAN_KEYS`) keeps every earlier run identified."""
+    stored = read_json(Path(run_dir) / "config.json")
+    config = stored.get("config") if isinstance(stored, dict) else None
+    return config_hash(config) if isinstance(config, dict) else fallback
 
 
 # --------------------------------------------------------------------------- paths
@@ -151,8 +165,14 @@ class Run:
         atomic_write_json(self.status_path, {"state": state, "updated": _now(), **fields})
 
     def is_done(self, cfg_hash: str) -> bool:
+        """Finished, with the config whose hash (today's rules) is ``cfg_hash``."""
         status = self.read_status() or {}
-        return status.get("state") == STATUS_DONE and status.get("config_hash") == cfg_hash
+        return status.get("state") == STATUS_DONE and self.identity() == cfg_hash
+
+    def identity(self) -> str | None:
+        """Today's hash of the config this run dir stored (:func:`stored_identity`); without a
+        config.json, the hash its status names."""
+        return stored_identity(self.path, (self.read_status() or {}).get("config_hash"))
 
     # config and provenance -----------------------------------------------
     def prepare(self, cfg: Any, cfg_hash: str) -> None:

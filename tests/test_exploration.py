@@ -41,6 +41,7 @@ def test_literal_runs_keep_their_config_hash(tmp_path: Path) -> None:
     for key in ("backend", "backend_threads", "visuals"):  # env keys newer than those runs too
         del old["env"][key]
     del old["precision"]  # newer than those runs too
+    del old["budget"]["trials"]  # the plan's, never hashed since (runs.HASH_PLAN_KEYS; old records are re-hashed)
     old_hash = stable_hash({k: v for k, v in old.items() if k not in HASH_EXCLUDED_KEYS})
     assert config_hash(cfg) == old_hash
     assert config_hash(compose_preset("mountaincar_ppo", tmp_path, "algo/exploration=gaussian")) == old_hash
@@ -55,7 +56,7 @@ def test_zoo_preset_carries_the_zoo_recipe(tmp_path: Path) -> None:
     assert (p.n_envs, p.n_steps, p.gamma, p.gae_lambda, p.learning_rate) == (1, 8, 0.9999, 0.9, 7.77e-05)
     assert (p.ent_coef, p.clip_range, p.n_epochs, p.max_grad_norm, p.vf_coef) == (0.00429, 0.1, 10, 5.0, 0.19)
     assert (p.use_sde, p.log_std_init, p.ortho_init, p.normalize_obs, p.normalize_reward) == (True, -3.29, False, True, True)
-    assert p.features_extractor == "separate_mlp" and cfg.budget.train_env_steps == 20000 and cfg.budget.trials == 5
+    assert p.features_extractor == "separate_mlp" and cfg.budget.train_env_steps == 20000 and cfg.budget.trials == 10
     venv = normalize.wrap_training(build_vec_env(cfg, 1, seed=0), p)
     model = new_model(cfg, venv)
     venv.close()
@@ -70,6 +71,22 @@ def test_gsde_preset_budget_is_seven_trials_of_200_iterations_at_quick(tmp_path:
         cfg = compose_preset(preset, tmp_path, "budget=quick")
         assert cfg.budget.trials == 7 and Schedule.of(cfg).iterations == 200
     assert Schedule.of(compose_preset("mountaincar_ppo", tmp_path, "budget=quick")).iterations == 100
+
+
+def test_carracing_gsde_presets_take_only_the_zoo_exploration_keys(tmp_path: Path) -> None:
+    """rl-baselines3-zoo's CarRacing recipe explores with gSDE (sde_sample_freq 4, log_std_init -2);
+    every other key stays the Gaussian preset's (Table 2), at the matched quick budget with 5 trials."""
+    for preset in ("carracing_ppo", "carracing_plls_ppo"):
+        gauss, gsde = (compose_preset(name, tmp_path, "budget=quick") for name in (preset, f"{preset}_gsde"))
+        p = gsde.algo.ppo
+        assert (p.use_sde, p.sde_sample_freq, p.log_std_init) == (True, 4, -2.0)
+        exploration = ("use_sde", "sde_sample_freq", "log_std_init")
+        assert {k: v for k, v in vars(p).items() if k not in exploration} == \
+            {k: v for k, v in vars(gauss.algo.ppo).items() if k not in exploration}
+        assert gsde.budget.train_env_steps == gauss.budget.train_env_steps == 1_024_000
+        assert gsde.budget.trials == 5
+    mountaincar = compose_preset("mountaincar_ppo_gsde", tmp_path, "budget=quick").algo.ppo
+    assert (mountaincar.sde_sample_freq, mountaincar.log_std_init) == (0, 0.0), "MountainCar's records keep theirs"
 
 
 @pytest.mark.slow

@@ -112,6 +112,24 @@ def test_changed_config_moves_the_old_run_aside(runs_dir: Path) -> None:
     assert json.loads((run_dir / "config.json").read_text())["config"]["budget"]["data_episodes"] == 3
 
 
+def test_adding_trials_leaves_finished_trials_done(runs_dir: Path) -> None:
+    """The trial count is the plan's: seed k's run is the same experiment at 3 or 10 trials, and a
+    run dir that wrote its hash before that rule (budget.trials hashed) is still identified."""
+    run_dir = runs_dir / "mountaincar_data" / "default" / "seed=0"
+    three = compose_preset("mountaincar_data", runs_dir, "budget.trials=3")
+    assert execute(three, run_dir) == "done"
+    ten = compose_preset("mountaincar_data", runs_dir, "budget.trials=10")
+    assert config_hash(ten) == config_hash(three)
+    stored = json.loads((run_dir / "config.json").read_text())
+    old_rule_hash = "0123456789abcdef"  # what a hash that still held budget.trials wrote
+    atomic_write_json(run_dir / "config.json", {**stored, "config_hash": old_rule_hash})
+    atomic_write_json(run_dir / "status.json", {"state": "done", "config_hash": old_rule_hash})
+    assert Run(run_dir).is_done(config_hash(ten))
+    assert execute(ten, run_dir) == "skipped"
+    other = compose_preset("mountaincar_data", runs_dir, "budget.data_episodes=3")
+    assert not Run(run_dir).is_done(config_hash(other)), "a key that changes the run still tells runs apart"
+
+
 def test_failed_run_records_the_error(runs_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import plls_bench.data as data
 

@@ -19,7 +19,7 @@ from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE
 from plls_bench.records.pending import pending_marker, reached_iteration, recorded_attempt
 from plls_bench.records.snapshot import Content, checkpoint_snapshot, record_files
 from plls_bench.runner_specs import RUNNERS
-from plls_bench.runs import STATUS_DONE, iter_run_dirs
+from plls_bench.runs import STATUS_DONE, iter_run_dirs, stored_identity
 
 
 @dataclass
@@ -123,7 +123,7 @@ def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple
         parts, split[rel] = split_parts(rel, contents.pop(rel))
         contents.update(parts)
     state = (read_json(run_dir / "status.json") or {}).get("state")
-    marker = {"config_hash": (read_json(run_dir / "config.json") or {}).get("config_hash"), "state": state,
+    marker = {"config_hash": stored_identity(run_dir), "state": state,
               "iteration": iteration, "files": restored, "split": split, "commit": files[-1]}
     contents[PARTIAL_MARKER] = (json.dumps(marker, indent=2, sort_keys=True) + "\n").encode()
     return write_record(target, contents)
@@ -187,7 +187,7 @@ def export_records(runs_dir: str | Path, records_dir: str | Path | None = None, 
         config = written.get("config") or {}
         if (config.get("budget") or {}).get("name") in (*EXCLUDED_BUDGETS, None):
             continue
-        state, ours = (read_json(run_dir / "status.json") or {}).get("state"), written.get("config_hash")
+        state, ours = (read_json(run_dir / "status.json") or {}).get("state"), stored_identity(run_dir)
         if state != STATUS_DONE and ours is not None and done_record_hash(out / key) == ours:
             done.skipped.append(f"{key}: status {state} (its record holds this trial, finished)")
             continue  # a stale copy of a trial finished elsewhere: a partial record would only shadow it

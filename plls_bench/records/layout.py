@@ -16,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from plls_bench.files import read_json
-from plls_bench.runs import STATUS_DONE, Run
+from plls_bench.runs import STATUS_DONE, Run, stored_identity
 
 # One cap for every committed file: a CarRacing V_s model.pt is 6.9 MiB and a CarRacing PPO
 # checkpoint (CNN weights with Adam's moments) 9.8 MiB; a DBC actor ~13 MiB (README "Results collector").
@@ -79,7 +79,9 @@ def partial_record(records_dir: str | Path, key: str | Path, cfg_hash: str) -> P
     """The complete partial record of ``key`` made with this config, or None."""
     path = Path(records_dir) / PARTIAL_DIR / key
     marker = read_json(path / PARTIAL_MARKER)
-    return path if isinstance(marker, dict) and marker.get("config_hash") == cfg_hash else None
+    if not isinstance(marker, dict):
+        return None
+    return path if stored_identity(path, marker.get("config_hash")) == cfg_hash else None
 
 
 def partial_iteration(path: str | Path) -> int | None:
@@ -103,11 +105,11 @@ def runs_dir_of(run_dir: str | Path, recorded: str) -> str:
 
 
 def done_record_hash(target: Path) -> str | None:
-    """The config hash of the finished record at ``target`` ("None" if it names none); None when
-    there is no finished record."""
+    """The config hash (today's rules) of the finished record at ``target`` ("None" if it stores no
+    config); None when there is no finished record."""
     if (read_json(target / "status.json") or {}).get("state") != STATUS_DONE:
         return None
-    return str((read_json(target / "config.json") or {}).get("config_hash"))
+    return str(stored_identity(target))
 
 
 def other_done_record(target: Path, ours: str | None) -> str | None:

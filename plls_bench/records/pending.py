@@ -20,6 +20,7 @@ from typing import Any
 
 from plls_bench.files import read_json, read_jsonl
 from plls_bench.records.layout import PENDING_MARKER
+from plls_bench.runs import stored_identity
 
 STREAMS = ("train", "eval")  # metrics/<stream>.jsonl rows carry the iteration they were logged at
 
@@ -35,7 +36,7 @@ def reached_iteration(run_dir: Path) -> int | None:
 def recorded_attempt(target: Path, cfg_hash: str | None) -> int | None:
     """The iteration the pending record at ``target`` reached when it holds this config; else None."""
     marker = read_json(Path(target) / PENDING_MARKER)
-    if not isinstance(marker, dict) or marker.get("config_hash") != cfg_hash:
+    if not isinstance(marker, dict) or stored_identity(target, marker.get("config_hash")) != cfg_hash:
         return None
     return int(marker["iteration"])
 
