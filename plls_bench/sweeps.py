@@ -31,6 +31,13 @@ class Sweep:
     key: str
     values: tuple[Any, ...]
     base: Any
+    trials: int | None = None  # trials per value other than the preset's own; None: the preset's count
+
+    @property
+    def plan_overrides(self) -> tuple[str, ...]:
+        """Settings of the plan, not of a run, for the values that run as overrides: their trial
+        count (``budget.trials`` names no run-dir variant and is not hashed)."""
+        return () if self.trials is None else (f"budget.trials={self.trials}",)
 
     def override(self, value: Any) -> str:
         """The command-line override of one value, as Hydra names the run-dir variant from it."""
@@ -61,9 +68,11 @@ def load_sweep(name: str) -> Sweep:
         data = OmegaConf.to_container(OmegaConf.load(path))
     except (OSError, OmegaConfBaseException) as err:
         raise ConfigError(f"{path}: unreadable ({err})") from err
-    if not isinstance(data, dict) or set(data) != {"preset", "key", "values"}:
-        raise ConfigError(f"{path}: needs exactly the keys preset, key, values")
-    preset, key, values = data["preset"], data["key"], data["values"]
+    if not isinstance(data, dict) or not {"preset", "key", "values"} <= set(data) <= {"preset", "key", "values", "trials"}:
+        raise ConfigError(f"{path}: needs the keys preset, key, values (and optionally trials)")
+    preset, key, values, trials = data["preset"], data["key"], data["values"], data.get("trials")
+    if trials is not None and not (isinstance(trials, int) and not isinstance(trials, bool) and trials >= 1):
+        raise ConfigError(f"{path}: trials: needs an int >= 1 (trials per value), got {trials!r}")
     if not (CONF_DIR / "experiment" / f"{preset}.yaml").is_file():
         raise ConfigError(f"{path}: preset: unknown experiment preset {preset!r}")
     if not isinstance(values, list) or len(values) < 2 or len(set(map(str, values))) != len(values):
@@ -73,7 +82,7 @@ def load_sweep(name: str) -> Sweep:
         raise ConfigError(f"{path}: values: must include the preset's own {key}={base} (its runs are that arm)")
     for value in values:  # each override must compose: a bad value fails here, not in a launched job
         compose([f"+experiment={preset}", f"{key}={value}"])
-    return Sweep(name, preset, key, tuple(values), base)
+    return Sweep(name, preset, key, tuple(values), base, trials)
 
 
 def _select(cfg: Any, key: str, path: Any) -> Any:

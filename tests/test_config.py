@@ -51,10 +51,12 @@ def overrides_for(yaml_path: Path) -> list[str]:
             return [f"env={first}", f"budget={second}"]
         parent = group.removesuffix("/per_env")
         runner = [f"runner={first}"] if parent == "algo" else []
-        return [f"{parent}={first}", f"env={second}", *runner]
-    if group == "budget/per_exploration":  # <env>_<exploration>_<profile>
-        env, exploration, profile = name.split("_")
-        return ["algo=ppo", "runner=ppo", f"algo/exploration={exploration}", f"env={env}", f"budget={profile}"]
+        runner += ["algo=ppo", "runner=ppo"] if parent == "algo/exploration" else []  # PPO's exploration
+        return [*runner, f"{parent}={first}", f"env={second}"]
+    if group == "budget/per_exploration":  # <algo>_<env>_<exploration>_<profile>
+        algo, env, exploration, profile = name.split("_")
+        return [f"algo={algo}", f"runner={algo}", f"algo/exploration={exploration}", f"env={env}",
+                f"budget={profile}"]
     if group == "budget/per_state_repr":  # <env>_<state repr>_<profile>
         env, state, profile = name.split("_")
         return [f"repr/state={state}", f"env={env}", f"budget={profile}"]

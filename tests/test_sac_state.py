@@ -41,7 +41,7 @@ def test_the_preset_is_dbcs_sac_on_states(runs_dir: Path) -> None:
         "every SAC setting is DBC's"
     budget = sac.budget
     assert (budget.trials, budget.train_env_steps, budget.eval_every_env_steps, budget.eval_episodes) == \
-        (3, 100_000, 10_000, 10)
+        (5, 100_000, 10_000, 10)
 
 
 def dataclass_fields(obj: object, *leave_out: str) -> dict[str, object]:
