@@ -51,6 +51,10 @@ class Comparison:
     p: float
     p_welch: float
     effect: float
+    mean_a: float
+    mean_b: float
+    sd_a: float            # sample SDs (ddof=1; NaN for one trial)
+    sd_b: float
     p_equivalence: float   # TOST p against ``margin`` (NaN without one)
     margin: float | None
     direction: str
@@ -203,17 +207,19 @@ def compare_arms(a: Sequence[float], b: Sequence[float], *, direction: str = "gr
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.ndim != 1 or b.ndim != 1 or not (np.isfinite(a).all() and np.isfinite(b).all()):
         raise ValueError("compare_arms takes two 1-D arrays of finite per-trial scores")
-    effect = float(a.mean() - b.mean()) if len(a) and len(b) else math.nan
     nan = math.nan
+    means = [float(x.mean()) if len(x) else nan for x in (a, b)]
+    sds = [float(x.std(ddof=1)) if len(x) > 1 else nan for x in (a, b)]
+    effect = means[0] - means[1]
     if min(len(a), len(b)) < max(min_n, 2):
-        return Comparison(len(a), len(b), "none", nan, nan, nan, effect, nan, margin, direction,
+        return Comparison(len(a), len(b), "none", nan, nan, nan, effect, *means, *sds, nan, margin, direction,
                           alpha, nan, TOO_FEW, None,
                           f"not tested: needs {min_n} per arm, has {len(a)} + {len(b)}")
     t, _, p_welch = (float(v) for v in welch(a, b))
     p = float(permutation_p(a, b))
     p_eq = float(equivalence_p(a, b, margin)) if margin is not None else nan
-    n_power = planned_n(effect, float(a.std(ddof=1)), float(b.std(ddof=1)), alpha=alpha, min_n=min_n)
-    return Comparison(len(a), len(b), "Welch t (permutation p)", t, p, p_welch, effect,
+    n_power = planned_n(effect, sds[0], sds[1], alpha=alpha, min_n=min_n)
+    return Comparison(len(a), len(b), "Welch t (permutation p)", t, p, p_welch, effect, *means, *sds,
                       p_eq, margin, direction, alpha, p, decide(effect, p, p_eq, direction, alpha),
                       n_power, _text(t, p, p_welch))
 
