@@ -17,7 +17,7 @@ import math
 from plls_bench.report.claim_settings import ClaimSettings
 from plls_bench.report.matched import NotJudged, finished_counts, require_trials
 from plls_bench.report.returns import DEFAULT_X_AXIS
-from plls_bench.report.protocol import B_BETTER, compare_arms, tail_mean
+from plls_bench.report.protocol import B_BETTER, Comparison, compare_arms, tail_mean
 from plls_bench.report.stats import probability_of_improvement
 from plls_bench.report.sweep_arms import matched_arms, sweep_arms
 from plls_bench.report.tables import NA, fmt, fmt_ci
@@ -50,10 +50,22 @@ def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Es
                                              min_n=settings.min_n), *probability_of_improvement(final[base], final[i]))
                 for i in range(len(arms)) if i != base]
     against = [c for _, c, _, _ in compared if c.outcome == B_BETTER]
-    row = against[0] if against else max((c for _, c, _, _ in compared), key=lambda c: (math.isnan(c.p), c.p))
+    row = against[0] if against else max((c for _, c, _, _ in compared), key=_weakness)
     key = sweep.key.rsplit(".", 1)[-1]
     text = f"{key}={sweep.base} vs v: " + "; ".join(
         f"v={label} {fmt(c.mean_a)} vs {fmt(c.mean_b)}, {c.text}, rliable P = {fmt_ci(p, ci, 3)}"
         for label, c, p, ci in compared)
     return Estimate(row.effect, (math.nan, math.nan), text, f"{budget}, {pair.at}", reach=float(pair.grid[-1]),
                     comparison=row)
+
+
+def _weakness(comparison: Comparison) -> tuple[bool, float]:
+    """How far a comparison is from finding the base better: an untested one (too few trials)
+    before any tested one, ordered by its smaller standardised effect; a tested one by its p. The
+    row stands for its hardest part."""
+    if not math.isnan(comparison.p):
+        return False, comparison.p
+    spread = math.hypot(comparison.sd_a, comparison.sd_b)
+    if not spread > 0:  # no spread (or one trial): only the sign of the effect speaks
+        return True, -math.copysign(1e300, comparison.effect)
+    return True, -comparison.effect / spread
