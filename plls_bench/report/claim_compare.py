@@ -14,8 +14,7 @@ from plls_bench.report.claim_settings import ClaimSettings
 from plls_bench.report.claim_values import budget_text, policy_of
 from plls_bench.report.load import Runs
 from plls_bench.report.matched import Matched, NotJudged, finished_counts, matched, require_trials
-from plls_bench.report.protocol import (A_BETTER, B_BETTER, EQUIVALENT, TOO_FEW, Comparison, compare_arms,
-                                        dispersion_scores, tail_mean)
+from plls_bench.report.protocol import A_BETTER, B_BETTER, EQUIVALENT, TOO_FEW, Comparison, compare_arms, tail_mean
 from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, load_curves
 from plls_bench.report.stats import ahead_from, probability_of_improvement
 from plls_bench.report.tables import fmt, fmt_ci
@@ -92,7 +91,8 @@ def p_improvement(runs: Runs, claim: dict[str, str], settings: ClaimSettings) ->
     tail = settings.final_tail
     x, y = ((tail_mean(m, tail) if score == "final" else m.mean(axis=1)) for m in pair.values)
     comp = _compare(x, y, claim, settings)
-    label = f"final, mean of the last {min(tail, len(pair.grid))} evaluations" if score == "final" else "mean over the curve"
+    label = (f"final, mean of the last {min(tail, len(pair.grid))} evaluations" if score == "final"
+             else "mean over the curve")
     text = f"{fmt(comp.mean_a)} vs {fmt(comp.mean_b)} ({label}); {comp.text}"
     if score == "final":
         last = _compare(pair.values[0][:, -1], pair.values[1][:, -1], claim, settings)
@@ -100,6 +100,13 @@ def p_improvement(runs: Runs, claim: dict[str, str], settings: ClaimSettings) ->
     text += f"; {_poi_text(x, y)}"
     return Estimate(comp.effect, (math.nan, math.nan), text, budget, reach=float(pair.grid[-1]), comparison=comp,
                     unreadable=_unsolved(runs, claim, settings, pair))
+
+
+def dispersion_scores(x: np.ndarray) -> np.ndarray:
+    """Brown-Forsythe's absolute deviations from the median, ``(n,)``: comparing two arms' spread
+    is comparing these (Levene's test with the median)."""
+    x = np.asarray(x, dtype=float)
+    return np.abs(x - np.median(x))
 
 
 def std_gap(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Estimate:
@@ -112,8 +119,9 @@ def std_gap(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Estim
         raise NotJudged(f"no evaluations at or after {claim['from_x']}")
     x, y = (m[:, keep].mean(axis=1) for m in pair.values)
     comp = _compare(dispersion_scores(x), dispersion_scores(y), claim, settings, direction="less")
-    gap = float(np.std(y, ddof=1) - np.std(x, ddof=1)) if min(len(x), len(y)) > 1 else math.nan
-    text = (f"std {fmt(float(np.std(x, ddof=1)))} vs {fmt(float(np.std(y, ddof=1)))} (gap {fmt(gap)}) of the mean "
+    sd_a, sd_b = (float(np.std(v, ddof=1)) if len(v) > 1 else math.nan for v in (x, y))
+    gap = sd_b - sd_a
+    text = (f"std {fmt(sd_a)} vs {fmt(sd_b)} (gap {fmt(gap)}) of the mean "
             f"return from x = {fmt(float(pair.grid[keep][0]))}; Brown-Forsythe: {comp.text}")
     return Estimate(gap, (math.nan, math.nan), text, budget, reach=float(pair.grid[-1]), comparison=comp,
                     unreadable=_unsolved(runs, claim, settings, pair))
@@ -153,7 +161,8 @@ def comparison_verdict(claim: str, est: Estimate, settings: ClaimSettings, famil
     if comp.outcome == B_BETTER:
         return NOT_REPRODUCED, f"{basis} <= {comp.alpha:g}, against the claim's direction"
     if comp.outcome == EQUIVALENT:
-        return NOT_REPRODUCED, f"{basis}; equivalent within ±{fmt(comp.margin or 0.0)} (TOST p = {comp.p_equivalence:.2g})"
+        margin = fmt(comp.margin or 0.0)
+        return NOT_REPRODUCED, f"{basis}; equivalent within ±{margin} (TOST p = {comp.p_equivalence:.2g})"
     planned = settings.comparisons[claim].planned_n if claim in settings.comparisons else None
     need = (f"80% power at the observed effect needs {comp.n_for_power} per arm" if comp.n_for_power
             else "no observed effect to plan for" if not comp.effect else "80% power needs more than 1000 per arm")

@@ -5,7 +5,6 @@ claims the paper leaves open to several readings. Read once per report, checked 
 of ``claims.csv`` so that a typo fails naming the key."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -122,6 +121,3 @@ def dispersion_text(dispersion: str, n: int | None) -> str:
         return f"published ± is an SD over {n if n else 'its'} seeds: threshold mean - 1 SD"
     return "published ± is over one agent's evaluation episodes, not seeds: threshold the published mean"
 
-
-def finite_or_none(value: float) -> float | None:
-    return value if math.isfinite(value) else None

@@ -181,7 +181,8 @@ def reading_summary(settings: ClaimSettings, final: dict[str, tuple[str, str]]) 
     total = sum(depends.values())
     per = ", ".join(f"{reading} {n} of {sum(r == reading for r, _ in settings.readings)}"
                     for reading, n in depends.items())
-    return f"{total} of {len(settings.readings)} claims read more than one way have verdicts that depend on the reading ({per})"
+    return (f"{total} of {len(settings.readings)} claims read more than one way have verdicts that depend on the "
+            f"reading ({per})")
 
 
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
@@ -213,8 +214,8 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in shown)
     caption = (f"{len(records)} claims: {summary}; {reading_summary(settings, final)}. "
                f"How verdicts are decided: docs/verdicts.md. A comparison (A beats B, A has the smaller spread) needs "
-               f"{settings.min_n} finished trials per arm; it is Welch's t with its exact permutation p, Holm-corrected "
-               f"over the primary comparisons, at alpha {settings.alpha:g}: reproduced where it rejects in the claim's "
+               f"{settings.min_n} finished trials per arm; it is Welch's t with its exact permutation p, "
+               f"Holm-corrected over the primary comparisons, at alpha {settings.alpha:g}: reproduced where it rejects in the claim's "
                "direction, not reproduced where it rejects the other way or TOST shows the arms equivalent within "
                "the claim's margin (results/paper/claims.yaml), inconclusive otherwise, with the trials 80% power "
                "would need. A threshold row reads a Student t interval of the mean (an order-statistic interval of "
@@ -222,7 +223,8 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
                f"other = not reproduced, across = inconclusive. Final return = the mean of the last "
                f"{settings.final_tail} evaluations compared (the single last one shown as a sensitivity reading). "
                "rliable's probability of improvement is description only (Agarwal et al., 2021). A comparison "
-               "whose baseline fails its check (the row it requires), or where neither arm solves the task, is not made.")
+               "whose baseline fails its check (the row it requires), or where neither arm solves the task, "
+               "is not made.")
     table = Table(f"{entry.ref}. {entry.title}", caption,
                   ["Claim", "Paper", "Suite (test; interval)", "Budget (trials)", "Verdict", "Rule", "Source"],
                   rows, pd.DataFrame(records))

@@ -40,7 +40,8 @@ A_BETTER, B_BETTER, EQUIVALENT, UNDECIDED, TOO_FEW = (
 @dataclass(frozen=True)
 class Comparison:
     """Arm a against arm b. ``p`` is the two-sided permutation p of Welch's t (``statistic``),
-    before any family correction (``p_adjusted`` after it); ``p_welch`` is the t distribution's. ``effect`` is mean(a) - mean(b). ``outcome``
+    before any family correction (``p_adjusted`` after it); ``p_welch`` is the t distribution's.
+    ``effect`` is mean(a) - mean(b). ``outcome``
     is read in the claim's ``direction``: "a better" when a is significantly greater
     (``direction="greater"``) or smaller (``"less"``) than b."""
 
@@ -293,9 +294,3 @@ def tail_mean(curve: np.ndarray, tail: int) -> np.ndarray:
         raise ValueError(f"tail must be at least 1 evaluation, got {tail}")
     return curve[..., -tail:].mean(axis=-1)
 
-
-def dispersion_scores(x: Sequence[float]) -> np.ndarray:
-    """Brown-Forsythe's absolute deviations from the median, ``(n,)``: comparing two arms' spread
-    is comparing these with :func:`compare_arms` (Levene's test with the median)."""
-    x = np.asarray(x, dtype=float)
-    return np.abs(x - np.median(x))

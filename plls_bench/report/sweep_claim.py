@@ -7,8 +7,8 @@ evaluations every finished trial of every arm reaches) are compared with v's und
 (:func:`~plls_bench.report.protocol.compare_arms`). "Best" is an intersection: every comparison
 must find the base better, so the row's comparison is the least significant of them (the
 intersection-union test needs no correction among its parts); one that finds some v better
-stands for the row instead. rliable's P(base > v) is shown beside each. Every arm needs
-MIN_TRIALS finished trials at the base runs' budget.
+stands for the row instead, as does the comparison with the fewest trials while any has fewer than
+the protocol's minimum. rliable's P(base > v) is shown beside each.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import math
 from plls_bench.report.claim_settings import ClaimSettings
 from plls_bench.report.matched import NotJudged, finished_counts, require_trials
 from plls_bench.report.returns import DEFAULT_X_AXIS
-from plls_bench.report.protocol import B_BETTER, Comparison, compare_arms, tail_mean
+from plls_bench.report.protocol import B_BETTER, TOO_FEW, Comparison, compare_arms, tail_mean
 from plls_bench.report.stats import probability_of_improvement
 from plls_bench.report.sweep_arms import matched_arms, sweep_arms
 from plls_bench.report.tables import NA, fmt, fmt_ci
@@ -42,7 +42,7 @@ def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Es
     if other:
         raise NotJudged(f"arms at another budget than the preset's own runs ({budgets[base]}): "
                         f"{', '.join(other)}", budget)
-    require_trials(counts, budget)
+    require_trials(counts, budget, minimum=1)  # fewer than min_n: described, not tested
     pair = matched_arms(runs, arms)
     final = [tail_mean(v, settings.final_tail) for v in pair.values]
     margin = settings.comparisons[claim["claim"]].margin if claim["claim"] in settings.comparisons else None
@@ -50,7 +50,8 @@ def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Es
                                              min_n=settings.min_n), *probability_of_improvement(final[base], final[i]))
                 for i in range(len(arms)) if i != base]
     against = [c for _, c, _, _ in compared if c.outcome == B_BETTER]
-    row = against[0] if against else max((c for _, c, _, _ in compared), key=_weakness)
+    too_few = sorted((c for _, c, _, _ in compared if c.outcome == TOO_FEW), key=lambda c: c.n_a + c.n_b)
+    row = too_few[0] if too_few else against[0] if against else max((c for _, c, _, _ in compared), key=_weakness)
     key = sweep.key.rsplit(".", 1)[-1]
     text = f"{key}={sweep.base} vs v: " + "; ".join(
         f"v={label} {fmt(c.mean_a)} vs {fmt(c.mean_b)}, {c.text}, rliable P = {fmt_ci(p, ci, 3)}"

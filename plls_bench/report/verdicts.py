@@ -64,7 +64,8 @@ def gated(outcome: str, reason: str, required: str, check_estimate: Estimate | N
     reading stays in the reason. Its own verdict otherwise, noting a check not (yet) reproduced."""
     value = f" ({check_estimate.text})" if check_estimate else ""
     if check_outcome in (NOT_REPRODUCED, NOT_MADE, NOT_SOLVED):
-        state = "not reproduced" if check_outcome == NOT_REPRODUCED else f"{check_outcome} (its own reading)"
+        state = {NOT_REPRODUCED: "not reproduced", NOT_MADE: "not made (its own baseline check fails)",
+                 NOT_SOLVED: "not made (neither of its arms solves the task)"}[check_outcome]
         return NOT_MADE, f"its baseline check '{required}' is {state}{value}; its own reading: {outcome}, {reason}"
     if check_outcome == REPRODUCED or check_outcome == outcome == NOT_RUN:  # its reason names what is missing
         return outcome, reason
