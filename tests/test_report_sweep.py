@@ -13,6 +13,9 @@ import pytest
 from plls_bench.config import ConfigError
 from plls_bench.plan import plan_sweep
 from plls_bench.report import render_all
+from plls_bench.report.claim_settings import load_settings
+from plls_bench.report.claims import read_claims
+from plls_bench.report.collect import PAPER_DIR
 from plls_bench.report.load import Runs
 from plls_bench.report.matched import NotJudged
 from plls_bench.report.sweep_claim import sweep_best
@@ -45,15 +48,16 @@ def test_plan_gives_each_value_its_variant_and_its_own_va(tmp_path: Path) -> Non
     assert all("repr_action/carracing" in missing for missing in keys.values()), keys
 
 
-def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 3) -> None:
+def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 5) -> None:
     """``trials`` finished runs of the N_e = ``value`` arm (the preset's own runs for 32), flat
-    at -20 until iteration 4 then at ``finals[seed]``; V_a's test MSE ``mse``."""
+    at -20 until iteration 2 then at ``finals[seed]`` (the last 3 evaluations, the claims' final
+    return); V_a's test MSE ``mse``."""
     variant = "default" if value == 32 else f"repr.action.latent_dim={value}"
     overrides = () if value == 32 else (f"repr.action.latent_dim={value}",)
     for seed in range(trials):
-        run, cfg = make_run(runs, PRESET, seed, "quick", "budget.trials=3", *overrides, variant=variant)
+        run, cfg = make_run(runs, PRESET, seed, "quick", f"budget.trials={trials}", *overrides, variant=variant)
         iterations = [0, 2, 4, 6, 8]
-        write_eval(run, cfg, iterations, [[-20.0 if i <= 4 else finals[seed]] * 2 for i in iterations])
+        write_eval(run, cfg, iterations, [[-20.0 if i <= 2 else finals[seed]] * 2 for i in iterations])
         write_repr(run, "action", 2, mse, artifact=f"va-{value}")
         finish(run, cfg)
 
@@ -67,16 +71,18 @@ def claim_row(runs: Path, out: Path) -> pd.Series:
 def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     for value, level in ((3, 0.0), (8, 10.0), (16, 20.0), (32, 100.0), (64, 30.0)):
-        arm(runs, value, [level, level + 1, level + 2], mse=0.001 * value)
+        arm(runs, value, [level + k for k in range(5)], mse=0.001 * value)
     row = claim_row(runs, tmp_path / "out")
+    # every other value loses in every split of its 5 + 5 trials but the observed one's mirror: p = 2 / 252
     assert row["verdict"] == "reproduced", row["reason"]
-    assert (row["suite_value"], row["ci_low"]) == (1.0, 1.0)
-    assert row["budget"].startswith("quick (3 + 3 + 3 + 3 + 3 trials), at ")
-    assert "v=64 1 [1, 1]" in row["suite"]
+    assert row["reason"] == "Holm-adjusted p = 0.0079 over 1 primary comparisons <= 0.05, in the claim's direction"
+    assert row["budget"].startswith("quick (5 + 5 + 5 + 5 + 5 trials), at ")
+    assert "v=64 102 vs 32, Welch t = 70.00, p = 0.0079 (permutation;" in row["suite"]
+    assert "rliable P = 1 [1, 1]" in row["suite"]
     render_all(runs, tmp_path / "out", only=["sweep_ne"])
     data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv")
     final = data.query("panel == 'final'").set_index("value")
-    assert final.loc[32, "mean"] == 101.0 and final.loc[8, "variant"] == "repr.action.latent_dim=8"
+    assert final.loc[32, "mean"] == 102.0 and final.loc[8, "variant"] == "repr.action.latent_dim=8"
     mse = data.query("panel == 'va_test_mse' and series == 'z sampled'").set_index("value")
     assert mse["mean"].to_dict() == pytest.approx({v: 0.001 * v for v in (3, 8, 16, 32, 64)})
 
@@ -84,23 +90,24 @@ def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> Non
 def test_claim_not_reproduced_when_another_value_beats_32(tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     for value, level in ((3, 0.0), (8, 500.0), (16, 20.0), (32, 100.0), (64, 30.0)):
-        arm(runs, value, [level, level + 1, level + 2], mse=0.01)
+        arm(runs, value, [level + k for k in range(5)], mse=0.01)
     row = claim_row(runs, tmp_path / "out")
-    assert row["verdict"] == "not reproduced"
-    assert row["suite_value"] == 0.0 and "v=8 0 [0, 0]" in row["suite"]
+    assert row["verdict"] == "not reproduced"  # N_e = 8 stands for the row: it beats 32
+    assert row["suite_value"] == -400.0 and "v=8 102 vs 502" in row["suite"] and "v=8" in row["suite"]
 
 
 def test_claim_not_run_names_the_missing_values_and_the_trial_count(tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     for value in (32, 8):
-        arm(runs, value, [1.0, 2.0, 3.0], mse=0.01)
+        arm(runs, value, [1.0, 2.0, 3.0], mse=0.01, trials=3)
     row = claim_row(runs, tmp_path / "out")
     assert row["verdict"] == "not run at this budget"
     assert row["reason"].startswith("no runs of repr.action.latent_dim = 3, 16, 64 (python -m plls_bench.reproduce")
     for value in (3, 16, 64):
         arm(runs, value, [1.0, 2.0, 3.0], mse=0.01, trials=1)
     row = claim_row(runs, tmp_path / "out2")
-    assert row["reason"] == "needs 3 trials per arm; has 1 + 3 + 1 + 3 + 1"  # in the order 3, 8, 16, 32, 64
+    assert row["budget"].startswith("quick (1 + 3 + 1 + 3 + 1 trials)")  # in the order 3, 8, 16, 32, 64
+    assert (row["verdict"], row["reason"]) == ("not run at this budget", "needs 5 per arm, has 3 + 1")
 
 
 SMOKE = [sys.executable, "-m", "plls_bench", "-m", f"+experiment={PRESET}", "budget=smoke", "progress=false"]
@@ -128,4 +135,5 @@ def test_two_value_smoke_sweep_end_to_end(tmp_path: Path) -> None:
     assert row["verdict"] == "not run at this budget"
     assert row["reason"] == "carracing_plls_ppo ran at budget smoke; judged from budget quick up"
     with pytest.raises(NotJudged, match="no runs of repr.action.latent_dim = 3, 16, 64"):
-        sweep_best(Runs(runs), {"param": "ne", "x_axis": ""})
+        sweep_best(Runs(runs), {"param": "ne", "x_axis": "", "claim": CLAIM},
+                   load_settings(PAPER_DIR, [r["claim"] for r in read_claims(PAPER_DIR)]))

@@ -40,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="+", metavar="ID", help="regenerate only these ids (see --list)")
     parser.add_argument("--list", action="store_true", help="print the registry and exit")
     parser.add_argument("--x-axis", default=DEFAULT_X_AXIS, choices=X_AXES, help="x axis of the return curves")
-    parser.add_argument("--paper", default=str(PAPER_DIR), help="folder of the paper's numbers (*.csv)")
+    parser.add_argument("--paper", default=str(PAPER_DIR), help="folder of the paper's numbers (*.csv) and the claims' "
+                        "decision settings (claims.yaml)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     if args.list:

@@ -8,10 +8,11 @@ import math
 
 import numpy as np
 
+from plls_bench.metrics import POLICIES
 from plls_bench.report.efficiency import parameter_counts
 from plls_bench.report.load import Runs
 from plls_bench.report.matched import NotJudged, require_trials
-from plls_bench.report.stats import summarise
+from plls_bench.report.protocol import t_interval
 from plls_bench.report.tables import NA, fmt
 from plls_bench.report.verdicts import Estimate
 from plls_bench.runs import PARAMS_FILE
@@ -26,7 +27,14 @@ def budget_text(runs: Runs, *names: str, n: list[int] | None = None) -> str:
     return f"{'/'.join(sorted({e.budget or NA for e in exps}))} ({' + '.join(map(str, counts))} {word})"
 
 
-def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
+def policy_of(claim: dict[str, str]) -> str:
+    """The test returns a curve claim reads: a ``param`` that is, or ends in ``:``, a policy of
+    POLICIES ("final:stochastic": sampled actions); the deterministic policy otherwise (D20)."""
+    last = claim["param"].rpartition(":")[2]
+    return last if last in POLICIES else "deterministic"
+
+
+def repr_mse(runs: Runs, claim: dict[str, str], _settings: object = None) -> Estimate:
     """Mean test MSE over distinct trained models (trials sharing an artifact count once).
     ``param`` is ``model`` (z sampled, ``test_mse``) or ``model:field`` (e.g. the decode(mu)
     reading, ``action:test_mse_posterior_mean``)."""
@@ -45,7 +53,7 @@ def repr_mse(runs: Runs, claim: dict[str, str]) -> Estimate:
     return mean_estimate(list(values.values()), "model", budget_text(runs, exp.name))
 
 
-def study_metric(runs: Runs, claim: dict[str, str]) -> Estimate:
+def study_metric(runs: Runs, claim: dict[str, str], _settings: object = None) -> Estimate:
     """Mean over trials of the number ``param`` of ``metrics/study.json`` (a latent-space study;
     each trial samples its own actions from the same V_a)."""
     exp = runs.experiment(claim["experiment"])
@@ -58,15 +66,19 @@ def study_metric(runs: Runs, claim: dict[str, str]) -> Estimate:
 
 
 def mean_estimate(values: list[float], unit: str, budget: str) -> Estimate:
-    """The mean of ``values`` with its bootstrap CI, shown as mean ± std (n units), CI."""
-    s = summarise(np.array(values))
-    text = f"{fmt(s.mean)} ± {fmt(s.std)} ({s.n} {unit}{'s' if s.n > 1 else ''})"
-    if not math.isnan(s.mean_ci[0]):
-        text += f", CI [{fmt(s.mean_ci[0])}, {fmt(s.mean_ci[1])}]"
-    return Estimate(s.mean, s.mean_ci, text, budget)
+    """The mean of ``values`` with its 95% Student t interval (valid at any n >= 2 for roughly
+    normal values, where a percentile bootstrap at 3 values is their range), shown as
+    mean ± std (n units), t-interval."""
+    x = np.array(values, dtype=float)
+    ci = t_interval(x)
+    std = float(x.std(ddof=1)) if len(x) > 1 else 0.0
+    text = f"{fmt(float(x.mean()))} ± {fmt(std)} ({len(x)} {unit}{'s' if len(x) > 1 else ''})"
+    if not math.isnan(ci[0]):
+        text += f", t-interval [{fmt(ci[0])}, {fmt(ci[1])}]"
+    return Estimate(float(x.mean()), ci, text, budget)
 
 
-def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
+def param_count(runs: Runs, claim: dict[str, str], _settings: object = None) -> Estimate:
     """Deterministic (the architecture fixes it): one trial suffices, even an unfinished one carried
     as a partial record."""
     params = parameter_counts(runs, runs.experiment(claim["experiment"]))
@@ -77,7 +89,7 @@ def param_count(runs: Runs, claim: dict[str, str]) -> Estimate:
     return Estimate(value, NAN2, fmt(value), budget)
 
 
-def steps_to_goal(runs: Runs, claim: dict[str, str]) -> Estimate:
+def steps_to_goal(runs: Runs, claim: dict[str, str], _settings: object = None) -> Estimate:
     """Fig. 11's filmstrip: the paper drives one car with one learned policy from a fixed s0. The
     suite films the first trial's policy, acting deterministically from that s0, so one trial is
     the measurement (it stays one value, with no CI)."""

@@ -1,160 +1,52 @@
-"""What the paper lacks: statistics for every return comparison (IQM and mean with 95% CIs,
-probability of improvement) and the "paper vs suite" table of every quantitative claim.
+"""The "paper vs suite" table of every quantitative claim, each decided by the declared protocol.
 
-Each claim in ``results/paper/claims.csv`` names a ``kind`` (how the suite measures it, one
-function below), a ``rule`` and ``threshold`` (what counts as reproducing it) and the least
-``min_budget`` and x range (``needs_x``) at which it can be judged. The verdict reads the suite's
-95% CI: entirely on the claim's side -> reproduced, entirely on the other -> not reproduced,
-straddling -> inconclusive; below the budget or range -> not run at this budget. A comparison
-that ``requires`` a baseline check (another row: the baseline reaches a published number, or beats
-the random policy) is not made while that check is not reproduced, or is itself not made
-(:func:`~plls_bench.report.verdicts.gate_all`).
+Each claim in ``results/paper/claims.csv`` names a ``kind`` (how the suite measures it), a ``rule``
+and ``threshold`` (what counts as reproducing it) and the least ``min_budget`` and x range
+(``needs_x``) at which it can be judged; ``results/paper/claims.yaml`` holds the protocol's
+settings and each claim's own (margins, planned trials, solve criteria, readings).
 
-Stochastic quantities need :data:`~plls_bench.report.matched.MIN_TRIALS` finished trials (per arm),
-and two arms are compared on the evaluations every finished trial of both reaches
-(:mod:`plls_bench.report.matched`); the budget column says at which x.
+- Comparison rows (two arms) are decided by :mod:`plls_bench.report.protocol` (Welch's t with its
+  permutation p, Holm-corrected over the primary comparison rows, TOST against the claim's margin):
+  :func:`plls_bench.report.claim_compare.comparison_verdict`.
+- Threshold rows read an interval valid at their n (Student t, or an order-statistic interval of
+  a median) against the threshold: entirely on the claim's side -> reproduced, entirely on the
+  other -> not reproduced, straddling -> inconclusive.
+- Below the budget, range or trials a row needs -> not run at this budget. A comparison that
+  ``requires`` a baseline check is not made while that check is not reproduced
+  (:func:`~plls_bench.report.verdicts.gate_all`); nor is one where neither arm solves the task.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 import pandas as pd
 
 from plls_bench.config import BUDGET_NAMES
 from plls_bench.metrics import POLICIES
 from plls_bench.records.layout import partial_iteration
 from plls_bench.report.base import Entry, Options, Output
-from plls_bench.report.claim_values import (budget_text, mean_estimate, param_count, repr_mse, steps_to_goal,
-                                            study_metric)
-from plls_bench.report.efficiency import fmt_convergence, parameter_counts
+from plls_bench.report.claim_compare import ahead_point, comparison_verdict, p_improvement, std_gap
+from plls_bench.report.claim_levels import convergence_point, final_return
+from plls_bench.report.claim_settings import ClaimSettings, load_settings
+from plls_bench.report.claim_values import param_count, repr_mse, steps_to_goal, study_metric
+from plls_bench.report.efficiency import parameter_counts
 from plls_bench.report.load import Runs
-from plls_bench.report.matched import Matched, NotJudged, at_text, finished_counts, matched, require_trials
-from plls_bench.report.returns import DEFAULT_X_AXIS, Curves, convergence, load_curves
-from plls_bench.report.stats import CURVE_RESAMPLES, ahead_from, bootstrap_ci, probability_of_improvement
-from plls_bench.report.tables import NA, Table, fmt, fmt_ci, read_paper
+from plls_bench.report.matched import NotJudged
+from plls_bench.report.protocol import adjust, holm
+from plls_bench.report.returns import DEFAULT_X_AXIS
 from plls_bench.report.sweep_claim import sweep_best
-from plls_bench.report.verdicts import (NOT_MADE, NOT_RUN, RULES, VERDICTS, Estimate, Judged, gate_all, rule_text,
-                                        verdict)
+from plls_bench.report.tables import NA, Table, fmt, read_paper
+from plls_bench.report.verdicts import (NOT_MADE, NOT_REPRODUCED, NOT_RUN, NOT_SOLVED, RULES, VERDICTS, Estimate,
+                                        Judged, gate_all, rule_text, verdict)
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 SCORES = ("final", "auc")  # p_improvement's per-trial score: the final return, or the mean over the curve
 
 
-# --------------------------------------------------------------------------- measurements
-def _policy(claim: dict[str, str]) -> str:
-    """The test returns a curve claim reads: a ``param`` that is, or ends in ``:``, a policy of
-    POLICIES ("final:stochastic": sampled actions); the deterministic policy otherwise (D20)."""
-    last = claim["param"].rpartition(":")[2]
-    return last if last in POLICIES else "deterministic"
-
-
-def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:
-    policy = _policy(claim)
-    curves = load_curves(runs, runs.experiment(name), name, claim["x_axis"] or DEFAULT_X_AXIS, policy)
-    if not curves.n:
-        raise NotJudged(f"no evaluations of {name}" + ("" if policy == "deterministic" else f" with {policy} returns"))
-    return curves
-
-
-def convergence_point(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Stochastic (a mean curve over trials): needs MIN_TRIALS finished trials, judged on the
-    evaluations all of them reach."""
-    curves = _curves(runs, claim["experiment"], claim)
-    counts = finished_counts(curves)
-    require_trials(counts, budget_text(runs, claim["experiment"], n=counts))
-    result = convergence(curves, curves.finished_seeds())
-    if result is None:
-        raise NotJudged(f"no evaluation that every finished trial of {claim['experiment']} reaches")
-    budget = f"{budget_text(runs, claim['experiment'], n=[result.n])}, {at_text(curves, result.last_x)}"
-    return Estimate(result.x, result.ci, fmt_convergence(result), budget, reach=result.last_x)
-
-
-def _pair(runs: Runs, claim: dict[str, str]) -> tuple[Matched, str]:
-    """Both methods' finished trials (MIN_TRIALS each: every pair statistic is stochastic) on the
-    evaluations they all reach, and the budget text saying where they are judged."""
-    a, b = _curves(runs, claim["experiment"], claim), _curves(runs, claim["baseline"], claim)
-    counts = finished_counts(a, b)
-    require_trials(counts, budget_text(runs, claim["experiment"], claim["baseline"], n=counts))
-    pair = matched(a, b, runs=runs)
-    return pair, f"{budget_text(runs, claim['experiment'], claim['baseline'], n=pair.counts)}, {pair.at}"
-
-
-def ahead_point(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """x from which A's mean return stays above B's; inf if A is not ahead at the end."""
-    pair, budget = _pair(runs, claim)
-    grid, (a, b) = pair.grid, pair.values
-
-    def stat(x: np.ndarray, y: np.ndarray) -> float:
-        index = ahead_from(x.mean(axis=0), y.mean(axis=0))
-        return math.inf if index is None else float(grid[index])
-
-    value = stat(a, b)
-    ci = bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False)
-    text = "not ahead at the end" if math.isinf(value) else f"ahead from {fmt(value)}"
-    return Estimate(value, (float(ci[0]), float(ci[1])), text + _ci_text(ci), budget, reach=float(grid[-1]))
-
-
-def std_gap(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Mean over evaluations with x >= ``from_x`` of std(B) - std(A) across trials."""
-    pair, budget = _pair(runs, claim)
-    grid, (a, b) = pair.grid, pair.values
-    keep = grid >= float(claim["from_x"] or 0)
-    if not keep.any():
-        raise NotJudged(f"no evaluations at or after {claim['from_x']}")
-
-    def stat(x: np.ndarray, y: np.ndarray) -> float:
-        return float(np.mean(y[:, keep].std(axis=0, ddof=1) - x[:, keep].std(axis=0, ddof=1)))
-
-    value = stat(a, b)
-    low, high = (float(v) for v in bootstrap_ci([a, b], stat, n_resamples=CURVE_RESAMPLES, vectorized=False))
-    return Estimate(value, (low, high), fmt_ci(value, (low, high)), budget, reach=float(grid[-1]))
-
-
-def p_improvement(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """P(A > B) over trials' ``final`` returns (at the largest common evaluation, not each arm's
-    own last) or ``auc`` (mean return over the common evaluations); ``final:stochastic`` reads
-    the sampled-action returns of the same test episodes."""
-    pair, budget = _pair(runs, claim)
-    score = claim["param"].partition(":")[0]
-    x, y = ((m[:, -1] if score == "final" else m.mean(axis=1)) for m in pair.values)
-    value, ci = probability_of_improvement(x, y)
-    text = f"{fmt_ci(value, ci, 3)} ({claim['param']}: {fmt(float(np.mean(x)))} vs {fmt(float(np.mean(y)))})"
-    return Estimate(value, ci, text, budget, reach=float(pair.grid[-1]))
-
-
-def final_return(runs: Runs, claim: dict[str, str]) -> Estimate:
-    """Mean over finished trials of the final evaluation's mean return of the ``param`` policy (a
-    baseline checked against a published number), at the last evaluation all of them reach.
-    Stochastic: needs MIN_TRIALS finished trials."""
-    curves = _curves(runs, claim["experiment"], claim)
-    counts = finished_counts(curves)
-    try:
-        require_trials(counts, budget_text(runs, claim["experiment"], n=counts))
-    except NotJudged as short:
-        raise NotJudged(f"{short}{_finals_so_far(curves)}", short.budget) from None
-    arm = matched(curves, runs=runs)
-    budget = f"{budget_text(runs, claim['experiment'], n=arm.counts)}, {arm.at}"
-    return mean_estimate([float(v) for v in arm.values[0][:, -1]], "trial", budget)
-
-
-def _finals_so_far(curves: Curves) -> str:
-    """The final returns of the trials that did finish, so a row short of trials still shows what
-    the evidence says so far: " (final returns 0.73, 9.4 at 100,000 env steps)"; "" if none."""
-    if not curves.finished_seeds().any():
-        return ""
-    arm = matched(curves)
-    return f" (final returns {', '.join(fmt(float(v)) for v in arm.values[0][:, -1])} {arm.at})"
-
-
-def _ci_text(ci: tuple[np.ndarray, np.ndarray]) -> str:
-    low, high = float(ci[0]), float(ci[1])
-    return "" if math.isnan(low) else f" [{fmt(low)}, {'never' if math.isinf(high) else fmt(high)}]"
-
-
-KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
+KINDS: dict[str, Callable[[Runs, dict[str, str], ClaimSettings], Estimate]] = {
     "repr_mse": repr_mse, "param_count": param_count, "steps_to_goal": steps_to_goal,
     "convergence": convergence_point, "ahead_from": ahead_point, "std_gap": std_gap,
     "p_improvement": p_improvement, "study": study_metric, "final_return": final_return,
@@ -162,8 +54,9 @@ KINDS: dict[str, Callable[[Runs, dict[str, str]], Estimate]] = {
 }
 
 
-def judge(runs: Runs, claim: dict[str, str]) -> Judged:
-    """(estimate, verdict, reason, budget text) for one claim row."""
+def judge(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Judged:
+    """(estimate, verdict, reason, budget text) for one claim row; a comparison row's verdict on
+    its own p (``claims_table`` reads it again at its Holm-corrected p)."""
     budgets = {n: _run_budget(runs, n, claim["kind"]) for n in (claim["experiment"], claim["baseline"]) if n}
     if None in budgets.values():  # every arm without a run is named, so the row says all that is missing
         return None, NOT_RUN, "; ".join(_no_runs_reason(runs, n) for n, b in budgets.items() if b is None), None
@@ -171,16 +64,20 @@ def judge(runs: Runs, claim: dict[str, str]) -> Judged:
         if BUDGET_ORDER.index(budget) < BUDGET_ORDER.index(claim["min_budget"]):
             return None, NOT_RUN, f"{name} ran at budget {budget}; judged from budget {claim['min_budget']} up", None
     try:
-        est = KINDS[claim["kind"]](runs, claim)
+        est = KINDS[claim["kind"]](runs, claim, settings)
     except NotJudged as err:
         return None, NOT_RUN, str(err), err.budget
     if claim["needs_x"] and est.reach < float(claim["needs_x"]):
         axis = claim["x_axis"] or DEFAULT_X_AXIS
         return est, NOT_RUN, f"runs reach {axis} {fmt(est.reach)} < {fmt(float(claim['needs_x']))}", est.budget
+    if est.comparison is not None:
+        return (est, *comparison_verdict(claim["claim"], est, settings, None), est.budget)
+    if est.unreadable:  # a gate that fails its own tests
+        return est, NOT_REPRODUCED, est.unreadable, est.budget
     low, high = est.ci if not math.isnan(est.ci[0]) else (est.value, est.value)
     high_t = float(claim["threshold_high"]) if claim["threshold_high"] else math.nan
     if not math.isnan(est.ci[0]):
-        basis = " (95% CI)"
+        basis = " (95% interval)"
     else:  # a count is exact; anything else from one trial or model has no interval
         basis = "" if claim["kind"] == "param_count" else " (one value: no CI)"
     reason = f"suite value {rule_text(claim)}{basis}"
@@ -241,6 +138,7 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     _check_chains(rows, paper_dir)
+    load_settings(paper_dir, [row["claim"] for row in rows])  # claims.yaml names only these rows
     return rows
 
 
@@ -258,15 +156,46 @@ def _check_chains(rows: list[dict[str, str]], paper_dir: Path) -> None:
             at = requires[at]
 
 
+def holm_judged(claims: list[dict[str, str]], judged: dict[str, Judged], settings: ClaimSettings) -> dict[str, Judged]:
+    """The primary comparison rows (claims.yaml, ``primary``) that were tested, read again at their
+    Holm-corrected p over that family; every other row as judged."""
+    family = [c["claim"] for c in claims if c["claim"] in settings.comparisons
+              and settings.comparisons[c["claim"]].primary and judged[c["claim"]][0] is not None
+              and judged[c["claim"]][0].comparison is not None and not judged[c["claim"]][0].unreadable
+              and judged[c["claim"]][1] != NOT_RUN]
+    adjusted = holm([judged[name][0].comparison.p for name in family])
+    out = dict(judged)
+    for name, p in zip(family, adjusted):
+        est = judged[name][0]
+        est = replace(est, comparison=adjust(est.comparison, float(p)))
+        out[name] = (est, *comparison_verdict(name, est, settings, len(family)), est.budget)
+    return out
+
+
+def reading_summary(settings: ClaimSettings, final: dict[str, tuple[str, str]]) -> str:
+    """How many claims read more than one way have a verdict that depends on the reading."""
+    depends: dict[str, int] = {}
+    for reading, rows in settings.readings:
+        depends.setdefault(reading, 0)
+        depends[reading] += len({final[row][0] for row in rows}) > 1
+    total = sum(depends.values())
+    per = ", ".join(f"{reading} {n} of {sum(r == reading for r, _ in settings.readings)}"
+                    for reading, n in depends.items())
+    return (f"{total} of {len(settings.readings)} claims read more than one way have verdicts that depend on the "
+            f"reading ({per})")
+
+
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     """The "paper vs suite" table: every claim of ``claims.csv`` with the suite's value and verdict."""
     rows, records = [], []
     claims = read_claims(opts.paper_dir)
-    judged = {claim["claim"]: judge(runs, claim) for claim in claims}
+    settings = load_settings(opts.paper_dir, [c["claim"] for c in claims])
+    judged = holm_judged(claims, {claim["claim"]: judge(runs, claim, settings) for claim in claims}, settings)
     final = gate_all(claims, judged)
     for claim in claims:
         est, _, _, budget = judged[claim["claim"]]
         outcome, reason = final[claim["claim"]]
+        comp = est.comparison if est else None
         rows.append([claim["claim"], claim["paper"], est.text if est else NA, budget or NA,
                      outcome, reason, claim["source"]])
         records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],
@@ -274,19 +203,30 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
                         "paper": claim["paper"], "paper_value": claim["paper_value"],
                         "paper_pm": claim["paper_pm"], "suite_value": est.value if est else None,
                         "ci_low": est.ci[0] if est else None, "ci_high": est.ci[1] if est else None,
+                        "test": comp.test if comp else None, "statistic": comp.statistic if comp else None,
+                        "p": comp.p if comp else None, "p_adjusted": comp.p_adjusted if comp else None,
+                        "n_for_power": comp.n_for_power if comp else None,
                         "suite": est.text if est else None, "budget": budget,
                         "verdict": outcome, "reason": reason, "rule": claim["rule"],
                         "threshold": claim["threshold"], "source": claim["source"]})
     counts = pd.Series([r["verdict"] for r in records]).value_counts()
-    shown = [v for v in VERDICTS if v != NOT_MADE or v in counts]  # "0 not made" would only be noise
+    shown = [v for v in VERDICTS if v not in (NOT_MADE, NOT_SOLVED) or v in counts]  # "0 not made" is noise
     summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in shown)
-    caption = (f"{len(records)} claims: {summary}. A verdict reads the suite's 95% bootstrap CI (percentile, "
-               "fixed seed): entirely on the claim's side of its threshold = reproduced, entirely on the other "
-               "side = not reproduced, across it = inconclusive; claims need the budget and x range named in "
-               "results/paper/claims.csv. A comparison whose baseline fails its own check (the row it "
-               "requires) is not made. Probabilities of improvement follow rliable (Agarwal et al., 2021).")
+    caption = (f"{len(records)} claims: {summary}; {reading_summary(settings, final)}. "
+               f"How verdicts are decided: docs/verdicts.md. A comparison (A beats B, A has the smaller spread) needs "
+               f"{settings.min_n} finished trials per arm; it is Welch's t with its exact permutation p, "
+               f"Holm-corrected over the primary comparisons, at alpha {settings.alpha:g}: reproduced where it rejects in the claim's "
+               "direction, not reproduced where it rejects the other way or TOST shows the arms equivalent within "
+               "the claim's margin (results/paper/claims.yaml), inconclusive otherwise, with the trials 80% power "
+               "would need. A threshold row reads a Student t interval of the mean (an order-statistic interval of "
+               "the median for convergence points): entirely on the claim's side = reproduced, entirely on the "
+               f"other = not reproduced, across = inconclusive. Final return = the mean of the last "
+               f"{settings.final_tail} evaluations compared (the single last one shown as a sensitivity reading). "
+               "rliable's probability of improvement is description only (Agarwal et al., 2021). A comparison "
+               "whose baseline fails its check (the row it requires), or where neither arm solves the task, "
+               "is not made.")
     table = Table(f"{entry.ref}. {entry.title}", caption,
-                  ["Claim", "Paper", "Suite [95% CI]", "Budget (trials)", "Verdict", "Rule", "Source"],
+                  ["Claim", "Paper", "Suite (test; interval)", "Budget (trials)", "Verdict", "Rule", "Source"],
                   rows, pd.DataFrame(records))
-    judged = sum(r["suite_value"] is not None for r in records)
-    return Output(table=table, trials={"claims with a suite value": judged}, empty=judged == 0)
+    judged_n = sum(r["suite_value"] is not None for r in records)
+    return Output(table=table, trials={"claims with a suite value": judged_n}, empty=judged_n == 0)

@@ -24,6 +24,13 @@ CAPTION = (
     "(stratified), none for a single trial.")
 
 
+FEW_TRIALS = 10  # below this many trials per method, these statistics describe and cannot test
+FEW_NOTE = ("Description only: some methods have {n} trials. At 3 trials a 95% percentile-bootstrap interval of a "
+            "mean is the trials' range (each trial is all of a resample with probability 1/27 > 2.5%), the IQM equals "
+            "the mean, and P(PL-LS > method) takes one of 10 values (k/9). Verdicts are decided by the protocol of "
+            "docs/verdicts.md, not by these intervals.")
+
+
 def _row(comparison: Entry, label: str, budget: str | None, own: Scores,
          method: Scores | None) -> tuple[list[str], dict]:
     record = {"figure": comparison.id, "method": label, "budget": budget, "trials": len(own.final),
@@ -87,4 +94,7 @@ def return_statistics(runs: Runs, entry: Entry, opts: Options, *, comparisons: t
                "Mean return over the curve [95% CI]", "P(PL-LS > method), final [95% CI]",
                "P(PL-LS > method), curve [95% CI]", "Compared at (iteration)"]
     table = Table(f"{entry.ref}. {entry.title}", CAPTION, columns, rows, pd.DataFrame(records))
+    fewest = min((n for n in trials.values() if n), default=0)
+    if 0 < fewest < FEW_TRIALS:
+        table.notes.append(FEW_NOTE.format(n=fewest))
     return Output(table=table, trials=trials, empty=not any(trials.values()))

@@ -6,7 +6,7 @@ from __future__ import annotations
 from functools import partial
 
 from plls_bench.report import (claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent,
-                               fig_sweep)
+                               fig_sweep, power)
 from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
 from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 
@@ -95,6 +95,9 @@ ENTRIES: tuple[Entry, ...] = (
           (MC_PLLS, MC_PPO, MC_PLLS_GSDE, MC_PPO_GSDE, MC_ZOO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC,
            CH_SAC, S("mountaincar_va", "V_a"), S("carracing_va", "V_a")),
           claims.claims_table, "every file above; results/paper/claims.csv", kind="table"),
+    Entry("power", "Power", "Trials per arm each comparison claim needs for 80% power, and what they cost",
+          (MC_PLLS, MC_PPO, MC_PLLS_GSDE, MC_PPO_GSDE, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC),
+          power.power_table, f"{EVAL}; results/paper/claims.yaml; bench/throughput.json", kind="table"),
 )
 BY_ID = {entry.id: entry for entry in ENTRIES}
 assert len(BY_ID) == len(ENTRIES), "duplicate registry id"

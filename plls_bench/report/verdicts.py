@@ -5,24 +5,32 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from plls_bench.report.protocol import Comparison
+
 RULES = ("at_most", "at_least", "greater_than", "equal", "between")
 REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduced", "inconclusive",
                                                      "not run at this budget")
 # A comparison whose baseline fails its own check (its ``requires`` row is not reproduced, or not made): a method
 # beating, or losing to, a baseline that does not learn says nothing about the method.
 NOT_MADE = "not made: baseline fails its check"
-VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN, NOT_MADE)
+# A comparison where neither arm solves the task (claims.yaml, solved_at) says nothing about either method.
+NOT_SOLVED = "not made: neither arm solves the task"
+VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN, NOT_MADE, NOT_SOLVED)
 
 
 @dataclass(frozen=True)
 class Estimate:
-    """The suite's value for one claim and the 95% CI it is judged on."""
+    """The suite's value for one claim and the 95% interval it is judged on; a comparison row
+    carries its :class:`Comparison` (judged on it, not on ``ci``), and ``unreadable`` says why
+    a comparison cannot be read (neither arm solves the task)."""
 
     value: float
     ci: tuple[float, float]
     text: str      # the suite's value as shown
     budget: str    # budgets and trial counts behind it
     reach: float = math.inf  # furthest x the runs reached on the claim's axis
+    comparison: Comparison | None = None
+    unreadable: str | None = None
 
 
 Judged = tuple[Estimate | None, str, str, str | None]  # a claim judged: (estimate, verdict, reason, budget text)
@@ -55,8 +63,9 @@ def gated(outcome: str, reason: str, required: str, check_estimate: Estimate | N
     the check is not reproduced, or is itself not made (its own baseline fails); the comparison's own
     reading stays in the reason. Its own verdict otherwise, noting a check not (yet) reproduced."""
     value = f" ({check_estimate.text})" if check_estimate else ""
-    if check_outcome in (NOT_REPRODUCED, NOT_MADE):
-        state = "not reproduced" if check_outcome == NOT_REPRODUCED else "not made (its own baseline check fails)"
+    if check_outcome in (NOT_REPRODUCED, NOT_MADE, NOT_SOLVED):
+        state = {NOT_REPRODUCED: "not reproduced", NOT_MADE: "not made (its own baseline check fails)",
+                 NOT_SOLVED: "not made (neither of its arms solves the task)"}[check_outcome]
         return NOT_MADE, f"its baseline check '{required}' is {state}{value}; its own reading: {outcome}, {reason}"
     if check_outcome == REPRODUCED or check_outcome == outcome == NOT_RUN:  # its reason names what is missing
         return outcome, reason

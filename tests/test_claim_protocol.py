@@ -1,0 +1,106 @@
+"""The declared decision protocol's pieces (plls_bench/report/protocol.py, docs/verdicts.md) against
+independent computations, the claims' settings file rejecting a typo by name, and the rows that say
+why they cannot be read: neither arm solves the task; an arm mixes commits and devices."""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from plls_bench.report.claim_levels import least_trials, median_interval
+from plls_bench.report.claims import read_claims
+from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.protocol import (A_BETTER, EQUIVALENT, UNDECIDED, compare_arms, holm, permutation_p,
+                                        planned_n, t_interval, welch)
+from tests.test_report_matched import arm, claims, row
+
+
+def test_permutation_p_is_the_exact_permutation_test_of_welch_s_t() -> None:
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(0.0, 1.0, 5), np.array([0.3, 0.3, 1.9, 2.2, 0.3, 3.0])  # ties in b
+    pooled, observed = np.concatenate([a, b]), abs(stats.ttest_ind(a, b, equal_var=False).statistic)
+    splits = [np.isin(np.arange(11), chosen) for chosen in itertools.combinations(range(11), 5)]
+    beyond = [abs(stats.ttest_ind(pooled[m], pooled[~m], equal_var=False).statistic) >= observed * (1 - 1e-9)
+              for m in splits]  # the share of the 462 splits whose |t| reaches the observed one
+    assert permutation_p(a, b) == pytest.approx(np.mean(beyond))
+    assert permutation_p(np.arange(5.0), np.arange(5.0) + 10) == pytest.approx(2 / 252)  # the two extreme splits
+    t, df, p = welch(a, b)
+    reference = stats.ttest_ind(a, b, equal_var=False)
+    assert (t, p) == pytest.approx((reference.statistic, reference.pvalue))
+
+
+def test_holm_steps_down_and_leaves_untested_rows_out() -> None:
+    # sorted 0.005, 0.01, 0.03, 0.04 over m = 4: 4 x 0.005, 3 x 0.01, 2 x 0.03, then max(0.06, 1 x 0.04)
+    assert holm([0.01, 0.04, 0.03, math.nan, 0.005]) == pytest.approx([0.03, 0.06, 0.06, math.nan, 0.02], nan_ok=True)
+
+
+def test_compare_arms_reads_direction_and_equivalence() -> None:
+    low, high = [1.0, 2.0, 3.0, 4.0, 5.0], [11.0, 12.0, 13.0, 14.0, 15.0]
+    assert compare_arms(low, high, direction="less").outcome == A_BETTER
+    assert compare_arms(high, low, margin=1.0).outcome == A_BETTER
+    assert compare_arms([1.0, 2.0, 3.0, 4.0, 5.1], [1.0, 2.0, 3.0, 4.0, 5.0], margin=3.0).outcome == EQUIVALENT
+    assert compare_arms([1.0, 2.0, 3.0, 4.0, 5.1], [1.0, 2.0, 3.0, 4.0, 5.0]).outcome == UNDECIDED
+    row_ = compare_arms(high, low)
+    assert row_.text == f"Welch t = 10.00, p = 0.0079 (permutation; t-distribution {row_.p_welch:.2g})"
+    with pytest.raises(ValueError, match="direction must be one of"):
+        compare_arms(low, high, direction="up")
+
+
+def test_planned_n_and_intervals_match_textbook_values() -> None:
+    assert planned_n(1.0, 1.0, 1.0) == 17  # d = 1: 17 per arm for 80% at alpha 0.05 (noncentral t)
+    assert planned_n(0.0, 1.0, 1.0) is None
+    low, high = t_interval([1.0, 2.0, 3.0])
+    assert (low, high) == pytest.approx((2 - 4.302653 / math.sqrt(3), 2 + 4.302653 / math.sqrt(3)))
+    assert least_trials(0.95) == 6 and median_interval([1.0, 2.0, 3.0], 0.95) is None
+    assert median_interval([5.0, 1.0, 4.0, 2.0, 3.0, math.inf], 0.95) == (1.0, math.inf, 1 - 2 / 64)
+
+
+def _paper_copy(tmp_path: Path) -> Path:
+    paper = tmp_path / "paper"
+    shutil.copytree(PAPER_DIR, paper)
+    return paper
+
+
+def test_a_typo_in_claims_yaml_fails_naming_the_key(tmp_path: Path) -> None:
+    paper = _paper_copy(tmp_path)
+    text = (paper / "claims.yaml").read_text()
+    (paper / "claims.yaml").write_text(text.replace("{margin: 50.0, planned_n: 8,", "{marign: 50.0, planned_n: 8,"))
+    with pytest.raises(ValueError, match=r"comparisons\.PL-LS with PPO beats PPO on CarRacing \(final return\): keys "
+                                         r"must be .*wrong or missing: margin, marign"):
+        read_claims(paper)
+    (paper / "claims.yaml").write_text(text.replace('"PPO has the larger variance on CarRacing":',
+                                                    '"PPO has the larger varianse on CarRacing":'))
+    with pytest.raises(ValueError, match="comparisons: not a claim of claims.csv: 'PPO has the larger varianse"):
+        read_claims(paper)
+
+
+def test_a_comparison_where_neither_arm_solves_the_task_is_not_made(tmp_path: Path) -> None:
+    # MountainCar's solve criterion is 90 (claims.yaml, solved_at): returns near 0 never reach the flag
+    text = "PL-LS with PPO beats PPO on MountainCar (final return) [Gaussian"
+    arm(tmp_path / "stuck", "mountaincar_plls_ppo", 5, [0, 10, 20], lambda seed, i: -1e-4 * (seed + 1))
+    arm(tmp_path / "stuck", "mountaincar_ppo", 5, [0, 10, 20], lambda seed, i: -2e-4 * (seed + 1))
+    stuck = row(claims(tmp_path / "stuck", tmp_path / "out1"), text)
+    assert stuck["verdict"] == "not made: neither arm solves the task"
+    assert stuck["reason"].startswith("no trial of either arm reaches mountaincar's solve criterion 90")
+    arm(tmp_path / "solves", "mountaincar_plls_ppo", 5, [0, 10, 20], lambda seed, i: 93.0 + seed)
+    arm(tmp_path / "solves", "mountaincar_ppo", 5, [0, 10, 20], lambda seed, i: -2e-4 * (seed + 1))
+    assert row(claims(tmp_path / "solves", tmp_path / "out2"), text)["verdict"] == "reproduced"
+
+
+def test_an_arm_that_mixes_commits_and_devices_says_so(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"
+    arm(runs, "carracing_plls_ppo", 5, [0, 32, 64], lambda seed, i: 200.0 + seed)
+    arm(runs, "carracing_ppo", 5, [0, 32, 64], lambda seed, i: 50.0 + seed)
+    for seed in range(5):
+        path = runs / "carracing_ppo" / "default" / f"seed={seed}" / "provenance.json"
+        provenance = json.loads(path.read_text())
+        provenance.update(device_resolved="cpu" if seed < 2 else "cuda:0", git_sha="a" * 40 if seed < 2 else "b" * 40)
+        path.write_text(json.dumps(provenance))
+    beats = row(claims(runs, tmp_path / "out"), "PL-LS with PPO beats PPO on CarRacing (final return)")
+    assert beats["budget"].endswith("; carracing_ppo pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3, 4 (cuda, bbbbbbb)")
