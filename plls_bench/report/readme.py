@@ -86,7 +86,8 @@ def _variants_section(out_dir: Path, status: IdStatus) -> list[str]:
         stem = Path(png).with_suffix("")
         lines += [f"![{stem.name}]({png})", "",
                   "Files: " + " · ".join(f"[{ext.upper()}]({stem}.{ext})" for ext in ("png", "pdf", "csv")), ""]
-    return lines + _gaps(status) + [""]
+    gaps = _gaps(status)
+    return lines + gaps + ([""] if gaps else [])
 
 
 def _figure_section(status: IdStatus) -> list[str]:
