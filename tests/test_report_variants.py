@@ -83,7 +83,7 @@ def test_a_variant_without_default_runs_says_so_and_no_variant_says_none(tmp_pat
     runs = tmp_path / "runs"
     arm(runs, "default", [0.0])
     _, readme, status = render(runs, tmp_path / "none")
-    assert "No variant found: every run dir is a preset's default." in readme and status.status == "empty"
+    assert "No variant found: every run dir is a preset's default." in readme and status.status == "ok"
     lone = tmp_path / "lone"
     arm(lone, "repr.action.latent_dim=8", [1.0, 2.0])
     table, _, _ = render(lone, tmp_path / "out")

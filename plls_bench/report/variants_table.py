@@ -82,6 +82,6 @@ def variants_view(runs: Runs, entry: Entry, opts: Options) -> Output:
         if drawn is not None:
             figures[figure_name(preset)] = drawn
     table = Table(f"{entry.ref}. {entry.title}", CAPTION, COLUMNS, rows, pd.DataFrame(records) if records else None)
-    if not rows:
+    if not rows:  # a complete answer, not a gap: the view needs no run of its own
         table.notes.append("No variant found: every run dir is a preset's default.")
-    return Output(table=table, trials=trials, empty=not rows, figures=figures, lines=lines)
+    return Output(table=table, trials=trials, figures=figures, lines=lines)
