@@ -40,7 +40,8 @@ A_BETTER, B_BETTER, EQUIVALENT, UNDECIDED, TOO_FEW = (
 @dataclass(frozen=True)
 class Comparison:
     """Arm a against arm b. ``p`` is the two-sided permutation p of Welch's t (``statistic``),
-    before any family correction (``p_adjusted`` after it); ``p_welch`` is the t distribution's. ``effect`` is mean(a) - mean(b). ``outcome``
+    before any family correction (``p_adjusted`` after it); ``p_welch`` is the t distribution's.
+    ``effect`` is mean(a) - mean(b). ``outcome``
     is read in the claim's ``direction``: "a better" when a is significantly greater
     (``direction="greater"``) or smaller (``"less"``) than b."""
 
@@ -181,14 +182,44 @@ def planned_n(effect: float, sd_a: float, sd_b: float, *, power: float = POWER,
 
 
 # --------------------------------------------------------------------------- decisions
+def decide_many(effect: np.ndarray, p: np.ndarray, p_equivalence: np.ndarray, direction: str,
+                alpha: float = ALPHA) -> np.ndarray:
+    """Outcomes of tested comparisons, elementwise over arrays of one shape: a significant
+    difference (``p`` <= ``alpha``, after any family correction) in the claim's ``direction``
+    ("a better") or against it ("b better"); else "equivalent" where TOST rejects; else "undecided"."""
+    effect, p, p_equivalence = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (effect, p, p_equivalence)))
+    claimed = effect > 0 if direction == "greater" else effect < 0
+    significant = np.where(claimed, A_BETTER, B_BETTER)
+    return np.where(p <= alpha, significant, np.where(p_equivalence <= alpha, EQUIVALENT, UNDECIDED))
+
+
 def decide(effect: float, p: float, p_equivalence: float, direction: str, alpha: float = ALPHA) -> str:
-    """The outcome of a tested comparison: a significant difference (``p`` <= ``alpha``, after any
-    family correction) in the claim's ``direction`` or against it; else "equivalent" when TOST
-    rejects; else "undecided"."""
-    if p <= alpha:
-        a_higher = effect > 0
-        return A_BETTER if a_higher == (direction == "greater") else B_BETTER
-    return EQUIVALENT if p_equivalence <= alpha else UNDECIDED
+    """:func:`decide_many` of one comparison."""
+    return str(decide_many(np.array(effect), np.array(p), np.array(p_equivalence), direction, alpha))
+
+
+def arm_tests(a: np.ndarray, b: np.ndarray, margin: float | None = None) -> dict[str, np.ndarray]:
+    """The protocol's tests over the last axis (``a`` ``(..., n)``, ``b`` ``(..., m)``; each result
+    ``(...)``): ``effect`` (mean(a) - mean(b)), Welch's ``t`` and its t-distribution ``p_welch``,
+    the permutation ``p`` a decision reads, and the TOST ``p_equivalence`` (NaN without a margin)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    t, _, p_welch = welch(a, b)
+    p_eq = equivalence_p(a, b, margin) if margin is not None else np.full(np.shape(t), np.nan)
+    return {"effect": a.mean(axis=-1) - b.mean(axis=-1), "t": t, "p_welch": p_welch,
+            "p": permutation_p(a, b), "p_equivalence": p_eq}
+
+
+def decisions(a: np.ndarray, b: np.ndarray, *, direction: str = "greater", margin: float | None = None,
+              alpha: float = ALPHA, min_n: int = MIN_N) -> tuple[np.ndarray, np.ndarray]:
+    """Outcomes and p of many comparisons at once, each on its own (no family correction): ``a``
+    ``(..., n)`` against ``b`` ``(..., m)``, results ``(...)``. What :func:`compare_arms` decides
+    one comparison by, so a simulation of the rules runs the rules themselves."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    shape = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
+    if min(a.shape[-1], b.shape[-1]) < max(min_n, 2):
+        return np.full(shape, TOO_FEW), np.full(shape, np.nan)
+    tests = arm_tests(a, b, margin)
+    return decide_many(tests["effect"], tests["p"], tests["p_equivalence"], direction, alpha), tests["p"]
 
 
 def _text(t: float, p: float, p_welch: float) -> str:
@@ -215,13 +246,13 @@ def compare_arms(a: Sequence[float], b: Sequence[float], *, direction: str = "gr
         return Comparison(len(a), len(b), "none", nan, nan, nan, effect, *means, *sds, nan, margin, direction,
                           alpha, nan, TOO_FEW, None,
                           f"not tested: needs {min_n} per arm, has {len(a)} + {len(b)}")
-    t, _, p_welch = (float(v) for v in welch(a, b))
-    p = float(permutation_p(a, b))
-    p_eq = float(equivalence_p(a, b, margin)) if margin is not None else nan
+    tests = {key: float(value) for key, value in arm_tests(a, b, margin).items()}
+    outcome = decide(tests["effect"], tests["p"], tests["p_equivalence"], direction, alpha)
     n_power = planned_n(effect, sds[0], sds[1], alpha=alpha, min_n=min_n)
+    t, p, p_welch = tests["t"], tests["p"], tests["p_welch"]
     return Comparison(len(a), len(b), "Welch t (permutation p)", t, p, p_welch, effect, *means, *sds,
-                      p_eq, margin, direction, alpha, p, decide(effect, p, p_eq, direction, alpha),
-                      n_power, _text(t, p, p_welch))
+                      tests["p_equivalence"], margin, direction, alpha, p, str(outcome), n_power,
+                      _text(t, p, p_welch))
 
 
 def adjust(comparison: Comparison, p_adjusted: float) -> Comparison:
@@ -231,12 +262,6 @@ def adjust(comparison: Comparison, p_adjusted: float) -> Comparison:
     outcome = decide(comparison.effect, p_adjusted, comparison.p_equivalence, comparison.direction,
                      comparison.alpha)
     return replace(comparison, p_adjusted=p_adjusted, outcome=outcome)
-
-
-def holm_family(comparisons: Sequence[Comparison]) -> list[Comparison]:
-    """Each comparison of a family decided at its Holm-corrected p."""
-    adjusted = holm([c.p if c.outcome != TOO_FEW else math.nan for c in comparisons])
-    return [adjust(c, float(p)) for c, p in zip(comparisons, adjusted)]
 
 
 # --------------------------------------------------------------------------- one arm
@@ -269,9 +294,3 @@ def tail_mean(curve: np.ndarray, tail: int) -> np.ndarray:
         raise ValueError(f"tail must be at least 1 evaluation, got {tail}")
     return curve[..., -tail:].mean(axis=-1)
 
-
-def dispersion_scores(x: Sequence[float]) -> np.ndarray:
-    """Brown-Forsythe's absolute deviations from the median, ``(n,)``: comparing two arms' spread
-    is comparing these with :func:`compare_arms` (Levene's test with the median)."""
-    x = np.asarray(x, dtype=float)
-    return np.abs(x - np.median(x))
