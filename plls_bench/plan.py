@@ -107,13 +107,27 @@ def preset_config(experiment: str, profile: str, runs_dir: str, overrides: tuple
 
 def plan_profile(profile: str, runs_dir: str, only: list[str] | None = None,
                  rates: dict[str, float] | None = None, count_records: bool = True,
-                 overrides: tuple[str, ...] = ()) -> list[PresetPlan]:
+                 overrides: tuple[str, ...] = (), variants: list[tuple[str, ...]] | None = None) -> list[PresetPlan]:
     """The presets of ``profile`` (all, or ``only``) in dependency order, with their trials; a
     trial done in the committed records beside ``runs_dir`` counts as done unless not ``count_records``.
-    ``overrides`` (e.g. ``precision=bf16``) apply to every preset, as on its command line."""
+    ``overrides`` (e.g. ``precision=bf16``) apply to every preset, as on its command line; each of
+    ``variants`` (``reproduce --override``) adds a plan per preset beside its own runs."""
     presets = list_presets()
     chosen = select_presets(presets, only) if only else presets
-    return _costed([_plan_preset(name, profile, runs_dir, count_records, overrides) for name in chosen], rates)
+    plans = []
+    for name in chosen:
+        plans.append(_plan_preset(name, profile, runs_dir, count_records, overrides))
+        plans += [_plan_variant(name, profile, runs_dir, count_records, (*v, *overrides)) for v in variants or ()]
+    return _costed(plans, rates)
+
+
+def _plan_variant(experiment: str, profile: str, runs_dir: str, count_records: bool,
+                  overrides: tuple[str, ...]) -> PresetPlan:
+    """A ``reproduce --override`` variant of a preset; a setting it cannot compose names the override."""
+    try:
+        return _plan_preset(experiment, profile, runs_dir, count_records, overrides)
+    except ConfigError as err:
+        raise ConfigError(f"--override {' '.join(overrides)} on {experiment}: {err}") from err
 
 
 def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float] | None = None,

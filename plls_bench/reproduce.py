@@ -6,7 +6,8 @@ interrupted reproduce.sh re-run finishes only the rest; an interrupted trial res
 checkpoint. Trials a committed record holds done (``results/records``) count as done too
 (``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run
 as Hydra multiruns (``plls_bench.launch``): on this machine one per trial, ``--jobs`` at a time
-with ``--launcher joblib``; on SLURM one per preset, through submitit.
+with ``--launcher joblib``; on SLURM one per preset, through submitit. ``--override KEY=VALUE`` runs
+an ablation: a variant of each preset run, beside its own runs (``plls_bench.overrides``).
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
 from plls_bench.launch import (QUEUE_ORDERS, deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans,
                                trial_threads)
+from plls_bench.overrides import override_variants
 from plls_bench.plan import PresetPlan, Trial, plan_profile, plan_sweep
 from plls_bench.rates import THROUGHPUT_FILE, rate_machines
 from plls_bench.records.layout import record_path, records_dir_for
@@ -196,6 +198,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "queue as a whole ends soonest: for a campaign whose verdict needs every trial)")
     parser.add_argument("--hydra", action="append", default=[], metavar="KEY=VALUE",
                         help="extra launcher setting, e.g. --hydra hydra.launcher.partition=cpu (repeatable)")
+    parser.add_argument("--override", action="append", default=[], metavar="KEY=VALUE",
+                        help="an ablation of every preset run, in a variant dir beside its own runs (which run too), "
+                             "e.g. repr.action.latent_dim=8 (repeatable: one variant; KEY=V1,V2: one per value)")
     parser.add_argument("--only", nargs="+", metavar="PRESET",
                         help="run only these presets (names or globs, e.g. 'mountaincar_*')")
     parser.add_argument("--sweep", metavar="NAME",
@@ -242,9 +247,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error("--stop-after-min: SLURM starts jobs when it chooses; give each a limit with --time-limit-min")
     if args.sweep and args.only:
         parser.error("--sweep and --only: give one (a sweep runs only its own preset)")
+    if args.sweep and args.override:
+        parser.error("--sweep and --override: give one (a sweep declares its own overrides)")
     bad = [h for h in args.hydra if not h.startswith("hydra.") or "=" not in h]
     if bad:
-        parser.error(f"--hydra takes hydra.* KEY=VALUE settings, got {', '.join(bad)}")
+        parser.error(f"--hydra takes hydra.* KEY=VALUE settings (a config key goes to --override KEY=VALUE), "
+                     f"got {', '.join(bad)}")
+    try:
+        args.variants = override_variants(args.override)
+    except ConfigError as err:
+        parser.error(str(err))
     if args.out is None:
         args.out = SMOKE_OUT if args.profile == "smoke" else RESULTS_OUT
     return args
@@ -263,7 +275,8 @@ def main(argv: list[str] | None = None) -> int:
             plans = plan_sweep(load_sweep(args.sweep), args.profile, args.runs, count_records=count_records,
                                overrides=extra)
         else:
-            plans = plan_profile(args.profile, args.runs, args.only, count_records=count_records, overrides=extra)
+            plans = plan_profile(args.profile, args.runs, args.only, count_records=count_records, overrides=extra,
+                                 variants=args.variants)
     except ConfigError as err:
         print(f"reproduce: {err}", file=sys.stderr)
         return 2

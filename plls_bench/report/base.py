@@ -41,6 +41,9 @@ class Output:
     table: "Table | None" = None
     trials: dict[str, int] = field(default_factory=dict)
     empty: bool = False
+    # figures beyond the entry's own, by file name (``variants_<preset>``): each with its tidy data
+    figures: "dict[str, tuple[Figure, pd.DataFrame]]" = field(default_factory=dict)
+    lines: list[str] = field(default_factory=list)  # the README's index lines of what the build found
 
 
 Build = Callable[["Runs", "Entry", Options], Output]
@@ -81,3 +84,4 @@ class IdStatus:
     trials: dict[str, int] = field(default_factory=dict)
     gaps: list[str] = field(default_factory=list)
     error: str | None = None
+    lines: list[str] = field(default_factory=list)  # index lines (Output.lines): one per variant found

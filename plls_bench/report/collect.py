@@ -67,6 +67,11 @@ def write_output(entry: Entry, output: Output, out_dir: Path) -> list[str]:
             path = out_dir / "figures" / f"{entry.id}.csv"
             atomic_write_bytes(path, output.data.to_csv(index=False, lineterminator="\n").encode())
             paths.append(path)
+    for name, (figure, data) in output.figures.items():
+        paths += save_figure(figure, out_dir / "figures" / name)
+        path = out_dir / "figures" / f"{name}.csv"
+        atomic_write_bytes(path, data.to_csv(index=False, lineterminator="\n").encode())
+        paths.append(path)
     if output.table is not None:
         base = out_dir / "tables" / entry.id
         for ext, text in (("md", output.table.markdown()), ("tex", output.table.latex(entry.id)),
@@ -88,7 +93,7 @@ def render_one(entry: Entry, runs_dir: Path | None, out_dir: Path, opts: Options
         log.error("%s failed:\n%s", entry.id, traceback.format_exc())
         status.error = f"{type(err).__name__}: {err}"
     else:
-        status.trials = output.trials
+        status.trials, status.lines = output.trials, output.lines
         status.status = "empty" if output.empty else "partial" if runs.gaps else "ok"
     status.gaps = [str(gap) for gap in runs.gaps]
     return status
@@ -157,6 +162,8 @@ def verify_outputs(out_dir: str | Path, statuses: dict[str, IdStatus]) -> list[s
             paths = [out_dir / "tables" / f"{id_}.{ext}" for ext in ("md", "tex", "csv")]
             problems += [f"{id_}: {p.name} missing or empty" for p in paths
                          if not p.is_file() or not p.stat().st_size]
+            problems += [f"{id_}: {name} missing or blank" for name in status.files if name.endswith(".png")
+                         and (not (out_dir / name).is_file() or float(np.ptp(imread(out_dir / name)[..., :3])) == 0)]
             continue
         png, want = out_dir / "figures" / f"{id_}.png", (round(entry.size[0] * DPI), round(entry.size[1] * DPI))
         if not png.is_file() or png_size(png) != want:

@@ -15,12 +15,14 @@ from plls_bench.report.stats import align, band
 from plls_bench.report.tables import fmt, plural
 
 
-def _band_frame(series: str, experiment: str, x_name: str, grid: np.ndarray, values: np.ndarray) -> pd.DataFrame:
+def band_frame(series: str, experiment: str, x_name: str, grid: np.ndarray, values: np.ndarray) -> pd.DataFrame:
+    """The tidy data of one curve band: per x of ``grid`` ``(P,)``, :func:`band` of ``values`` ``(n, P)``."""
     stats = band(values)
     return pd.DataFrame({"series": series, "experiment": experiment, "x_axis": x_name, "x": grid, **stats})
 
 
-def _draw_band(ax, frame: pd.DataFrame, color: str, label: str) -> None:
+def draw_band(ax, frame: pd.DataFrame, color: str, label: str) -> None:
+    """The mean line of :func:`band_frame`'s data, +- one standard deviation shaded."""
     ax.plot(frame["x"], frame["mean"], color=color, lw=1.6, label=label)
     ax.fill_between(frame["x"], frame["mean"] - frame["std"], frame["mean"] + frame["std"],
                     color=color, alpha=0.2, lw=0)
@@ -48,10 +50,10 @@ def return_curves(runs: Runs, entry: Entry, opts: Options, *, sampled: bool = Fa
     frames = []
     for source, curves in methods:
         if curves.n:
-            frame = _band_frame(source.label, source.experiment, opts.x_axis, curves.grid, curves.values)
+            frame = band_frame(source.label, source.experiment, opts.x_axis, curves.grid, curves.values)
             early = int((~curves.complete_seeds()).sum())
             note = f", {early} stop early" if early else ""
-            _draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{note})")
+            draw_band(ax, frame, source.color, f"{source.label} ({curves.n}{note})")
             frames.append(frame)
             if sampled:
                 frames += _draw_sampled(ax, runs, source, opts.x_axis)
@@ -79,7 +81,7 @@ def _draw_sampled(ax, runs: Runs, source: Source, x_axis: str) -> list[pd.DataFr
     curves = load_curves(runs, exp, source.label, x_axis, policy="stochastic")
     if not curves.n:
         return []
-    frame = _band_frame(f"{source.label}, sampled actions", source.experiment, x_axis, curves.grid, curves.values)
+    frame = band_frame(f"{source.label}, sampled actions", source.experiment, x_axis, curves.grid, curves.values)
     ax.plot(frame["x"], frame["mean"], color=source.color, lw=1.0, ls="--", label=f"{source.label}, sampled actions")
     return [frame]
 
@@ -153,8 +155,8 @@ def loss_curves(runs: Runs, entry: Entry, opts: Options, *, model: str, metric: 
     frames = []
     for split, color, name in ((1, BASE_BLUE, "train"), (2, PLLS_RED, "validation")):
         grid, values = align([(c[0], c[split]) for c in distinct.values()])
-        frame = _band_frame(name, source.experiment, "epoch", grid, values)
-        _draw_band(ax, frame, color, name)
+        frame = band_frame(name, source.experiment, "epoch", grid, values)
+        draw_band(ax, frame, color, name)
         frames.append(frame)
     data = pd.concat(frames, ignore_index=True)
     if (data["mean"] > 0).all() and data["mean"].max() / data["mean"].min() > 100:

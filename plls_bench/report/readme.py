@@ -72,6 +72,24 @@ def _table_section(out_dir: Path, status: IdStatus) -> list[str]:
     return [*_header(status), body, "", f"Files: {_files(status, 'md', 'tex', 'csv')}", "", *_gaps(status), ""]
 
 
+def _variants_section(out_dir: Path, status: IdStatus) -> list[str]:
+    """One index line per variant found, its table, then each preset's figure of its variants."""
+    found = [f"- {line}" for line in status.lines] or ["No variant found: every run dir is a preset's default."]
+    lines = ["Every `<preset>/<variant>` run dir found beside the preset's default runs: an ablation override "
+             "(`reproduce --override KEY=VALUE`, docs/ablations.md) or a declared sweep's value.", "",
+             f"Status **{status.status}** · reading {status.reads}", "", *found, ""]
+    md = out_dir / "tables" / f"{status.id}.md"
+    lines += [md.read_text().strip() if status.status != "error" and md.is_file() else "*not rendered*", "",
+              "Files: " + " · ".join(f"[{Path(f).suffix[1:].upper()}]({f})" for f in status.files
+                                     if f.startswith("tables/")), ""]
+    for png in (f for f in status.files if f.endswith(".png")):
+        stem = Path(png).with_suffix("")
+        lines += [f"![{stem.name}]({png})", "",
+                  "Files: " + " · ".join(f"[{ext.upper()}]({stem}.{ext})" for ext in ("png", "pdf", "csv")), ""]
+    gaps = _gaps(status)
+    return lines + gaps + ([""] if gaps else [])
+
+
 def _figure_section(status: IdStatus) -> list[str]:
     png = next((f for f in status.files if f.endswith(".png")), None)
     image = f"![{status.ref}]({png})" if png else "*not rendered*"
@@ -95,9 +113,12 @@ def build_readme(out_dir: Path, runs_dir: Path | None, index: list[IdStatus], me
     claims = next((s for s in index if s.id == "claims"), None)
     if claims is not None:
         lines += ["## Paper vs suite", "", *_table_section(out_dir, claims)[2:]]
+    variants = next((s for s in index if s.id == "variants"), None)
+    if variants is not None:
+        lines += ["## Variants", "", *_variants_section(out_dir, variants)]
     lines += ["## Tables", ""]
     for status in index:
-        if status.kind == "table" and status.id != "claims":
+        if status.kind == "table" and status.id not in ("claims", "variants"):
             lines += _table_section(out_dir, status)
     lines += ["## Figures", ""]
     for status in index:

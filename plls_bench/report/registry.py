@@ -6,7 +6,7 @@ from __future__ import annotations
 from functools import partial
 
 from plls_bench.report import (claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent,
-                               fig_sweep, power)
+                               fig_sweep, power, variants_table)
 from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
 from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 
@@ -87,6 +87,10 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("sweep_ne", "Sec. 5.2 (N_e sweep)", "CarRacing, PL-LS + PPO against the size N_e of V_a's latent action",
           (CR_PLLS,), partial(fig_sweep.sweep_figure, sweep="ne"), f"{EVAL}; metrics/repr_test.json",
           size=(15.0, 4.8)),
+    # Not the paper's: every variant dir found (reproduce --override, a sweep value) beside its preset's default,
+    # with a figure per preset that has variants (figures/variants_<preset>.*) and an index line per variant.
+    Entry("variants", "Variants", "Every variant found, beside its preset's default", (), variants_table.variants_view,
+          f"{EVAL} of every <preset>/<variant> dir of the runs and records", kind="table"),
     Entry("stats", "Return statistics", "IQM, mean and probability of improvement for every return comparison",
           tuple(dict.fromkeys(s for e in (FIG10, FIG10_GSDE, FIG18, FIG20, FIG21) for s in e.sources)),
           partial(comparisons.return_statistics, comparisons=(FIG10, FIG10_GSDE, FIG18, FIG20, FIG21)), EVAL,
