@@ -11,7 +11,7 @@ plain ``import`` runs only when called, so choosing one task never imports anoth
 simulator (or torch).
 
 Adding a runner is one module with a ``run(cfg, run)`` function, one entry in :data:`SPECS` and its
-config checks (README, "Adding a runner").
+config checks (docs/architecture.md, "Adding a runner").
 """
 from __future__ import annotations
 

@@ -97,7 +97,8 @@ def test_a_stopped_cnn_ppo_trial_is_carried_and_a_dbc_snapshot_is_not(tmp_path: 
     assert done.pending == ["cheetah_sac_state/default/seed=0"]
     assert "over the 16 MiB of a partial record" in " ".join(done.skipped)
     records = tmp_path / "results" / "records"
-    assert not list((records / PENDING_DIR).rglob("*.pt")) and not (records / PARTIAL_DIR / "cheetah_sac_state").exists()
+    assert not list((records / PENDING_DIR).rglob("*.pt"))
+    assert not (records / PARTIAL_DIR / "cheetah_sac_state").exists()
 
 
 def test_no_tracked_file_and_not_the_records_outgrow_their_caps() -> None:
