@@ -2,13 +2,19 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup test smoke bench
+.PHONY: setup setup-dev test docs smoke bench
 
 setup:
 	./reproduce.sh --setup-only
 
-test: setup  ## the test suite CI runs (2 cores, no GPU)
+setup-dev:  ## .venv with the dev extra (pytest, mkdocs)
+	./reproduce.sh --setup-only --dev
+
+test: setup-dev  ## the test suite CI runs (2 cores, no GPU)
 	$(PY) -m pytest
+
+docs: setup-dev  ## the docs site from docs/ and results/ into site/, strict: a broken link or page fails
+	$(PY) -m mkdocs build --strict --site-dir site
 
 smoke: setup  ## the whole pipeline at smoke budget
 	./reproduce.sh --profile smoke

@@ -5,6 +5,7 @@
 #
 #   ./reproduce.sh --profile smoke        # the whole pipeline at tiny budgets
 #   ./reproduce.sh --setup-only           # only create/refresh .venv and check GL libraries
+#   ./reproduce.sh --setup-only --dev     # the same, with the dev extra (pytest, mkdocs) for tests and docs
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -47,21 +48,30 @@ pip_install() {
 setup_venv() {
   local stamp="$VENV/.plls-stamp" want
   want="$(cat pyproject.toml | sha256sum | cut -c1-16)"
-  if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then return 0; fi
-  check_python
-  [ -x "$VENV/bin/python" ] || { say "creating $VENV"; "$PYTHON" -m venv "$VENV"; }
-  say "installing pinned dependencies into $VENV (first run only)"
-  # torch first and alone: the pinned CPU wheel, so no other requirement drags in a CUDA build.
-  pip_install torch==2.13.0
-  pip_install -e .
-  echo "$want" > "$stamp"
+  if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+    check_python
+    [ -x "$VENV/bin/python" ] || { say "creating $VENV"; "$PYTHON" -m venv "$VENV"; }
+    say "installing pinned dependencies into $VENV (first run only)"
+    # torch first and alone: the pinned CPU wheel, so no other requirement drags in a CUDA build.
+    pip_install torch==2.13.0
+    pip_install -e .
+    echo "$want" > "$stamp"
+  fi
+  # The dev extra (tests, docs site) on top, with its own stamp, so a plain setup never drops it.
+  if [ "$dev" -eq 1 ] && [ "$(cat "$stamp.dev" 2>/dev/null)" != "$want" ]; then
+    say "installing the dev extra (pytest, mkdocs) into $VENV"
+    pip_install -e ".[dev]"
+    echo "$want" > "$stamp.dev"
+  fi
 }
 
 setup_only=0
+dev=0
 args=()
 for a in "$@"; do
   case "$a" in
     --setup-only) setup_only=1 ;;
+    --dev) dev=1 ;;
     *) args+=("$a") ;;
   esac
 done

@@ -1,4 +1,4 @@
-"""Shared by the bench scripts: a one-line machine description and section-wise BENCHMARKS.md."""
+"""Shared by the bench scripts: a one-line machine description and section-wise docs/benchmarks.md."""
 from __future__ import annotations
 
 import os
@@ -31,7 +31,7 @@ def announce(script: str, argv: list[str] | None) -> str:
     return command
 
 
-def write_section(section: str, text: str, path: Path = REPO / "BENCHMARKS.md") -> None:
+def write_section(section: str, text: str, path: Path = REPO / "docs" / "benchmarks.md") -> None:
     """Replace (or append) the block between ``<!-- section:begin -->`` and ``<!-- section:end -->``."""
     begin, end = f"<!-- {section}:begin -->", f"<!-- {section}:end -->"
     old = path.read_text() if path.exists() else "# Benchmarks\n\nEach section is rewritten by the script it names.\n"
@@ -45,7 +45,7 @@ def write_section(section: str, text: str, path: Path = REPO / "BENCHMARKS.md") 
 
 def finish_section(section: str, title: str, command: str, method: str, header: list[str],
                    rows: list[str], notes: list[str] | None = None, write: bool = True,
-                   path: Path = REPO / "BENCHMARKS.md") -> str:
+                   path: Path = REPO / "docs" / "benchmarks.md") -> str:
     """Print the machine after the run, assemble a section and write it unless ``write`` is false.
 
     ``header`` holds the column names; the text is: title, command, machine, the ``method``

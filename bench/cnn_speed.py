@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--matmul", type=int, default=2048, help="side of the square roof matmul")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved measurements per setting")
     parser.add_argument("--min-seconds", type=float, default=1.0, help="repeat a work at least this long")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     if min(args.threads) < 1 or min(args.batch, args.frames, args.matmul, args.rounds) < 1:
         parser.error("--threads, --batch, --frames, --matmul and --rounds must be positive")

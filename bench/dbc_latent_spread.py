@@ -123,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=1000, help="random agent steps that fill the replay")
     parser.add_argument("--updates", type=int, default=25, help="updates per loss group")
     parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     command = announce("dbc_latent_spread.py", argv)

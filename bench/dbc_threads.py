@@ -77,7 +77,7 @@ def add_child_arguments(parser: argparse.ArgumentParser, rounds: int, rounds_hel
     parser.add_argument("--steps", type=int, default=30, help="acting steps that fill the replay")
     parser.add_argument("--rounds", type=int, default=rounds, help=rounds_help)
     parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
 
 
 def run_policy(policy: str, args: argparse.Namespace) -> dict[str, list[list[float]]]:

@@ -16,7 +16,7 @@ is the suite's (every conv trunk runs in its weights' layout, ``plls_bench/trunk
 ``contiguous`` converts the built agent's modules back before any update, the layout before that
 change. ``--precisions`` sets the top-level ``precision`` key (``bf16``: autocast around the conv
 trunks; DBC failed the bf16 null comparison, so this is speed only). Prints the command and the
-machine, and rewrites this script's section of ``BENCHMARKS.md``.
+machine, and rewrites this script's section of ``docs/benchmarks.md``.
 """
 from __future__ import annotations
 
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=100, help="timed agent steps of acting")
     parser.add_argument("--updates", type=int, default=10, help="timed updates (after 2 warm-up)")
     parser.add_argument("--runs", default="/tmp/plls_bench_dbc_bench", help="runs_dir (V_a artifacts)")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     command = announce("dbc_throughput.py", argv)
     rows = []

@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--envs", type=int, default=16, help="envs in the vector env (Table 2: 16)")
     parser.add_argument("--steps", type=int, default=300, help="vector steps per measurement")
     parser.add_argument("--rounds", type=int, default=3, help="interleaved measurements per setting")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     command = announce("env_speed.py", argv)
     rates = env_rates(args.envs, args.steps, args.rounds)

@@ -19,7 +19,7 @@ ratios within one run only.
   size), so an iteration of ``carracing_ppo`` takes about a minute instead of about 15.
 
 Prints the command, the machine and load before and after, and rewrites this script's section of
-``BENCHMARKS.md``.
+``docs/benchmarks.md``.
 """
 from __future__ import annotations
 
@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bf16-iterations", type=int, default=1, help="at most this many timed for bf16")
     parser.add_argument("--n-steps", type=int, default=64, help="horizon per env (0: the preset's)")
     parser.add_argument("--runs", default="/tmp/plls_bench_layouts", help="runs_dir (a tiny V_s / V_a is built)")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     if min(args.iterations, args.bf16_iterations) < 1 or args.n_steps < 0:
         parser.error("--iterations and --bf16-iterations must be >= 1, --n-steps >= 0")

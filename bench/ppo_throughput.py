@@ -8,7 +8,7 @@ Each preset's training vector env and SB3 model are built exactly as the ``ppo``
 them (``budget=quick``: the paper's Table 1 / Table 2 PPO settings) from V_s / V_a artifacts that
 must already exist under ``--runs`` (nothing is trained here), one warm-up iteration runs,
 then ``--iterations`` PPO iterations (rollout + update, no evaluation) are timed. Prints the
-command and the machine, and rewrites this script's section of ``BENCHMARKS.md``.
+command and the machine, and rewrites this script's section of ``docs/benchmarks.md``.
 """
 from __future__ import annotations
 
@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="a tiny V_s / V_a (built first, visibly): weights do not change the speed")
     parser.add_argument("--backends", nargs="+", default=None, choices=ENV_BACKENDS,
                         help="measure each preset on these env.backend values (default: the profile's)")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     command = announce("ppo_throughput.py", argv)
     rows = []

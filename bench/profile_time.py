@@ -5,7 +5,7 @@
 
 Runs the main job exactly as ``./reproduce.sh`` does (every preset's pending trials as Hydra
 multiruns, the filmstrips, the results collector) into a temporary directory, prints its output,
-and rewrites this script's section of ``BENCHMARKS.md`` with the total and each preset's time.
+and rewrites this script's section of ``docs/benchmarks.md`` with the total and each preset's time.
 The ``.venv`` set-up is not included (``reproduce.sh`` reuses it once made).
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", default="smoke", help="budget profile (smoke, quick, paper)")
     parser.add_argument("--only", nargs="+", metavar="PRESET", help="time only these presets")
-    parser.add_argument("--no-write", action="store_true", help="print only, leave BENCHMARKS.md alone")
+    parser.add_argument("--no-write", action="store_true", help="print only, leave docs/benchmarks.md alone")
     args = parser.parse_args(argv)
     command = announce("profile_time.py", argv)
     with tempfile.TemporaryDirectory(prefix="plls_profile_") as tmp:

@@ -10,10 +10,10 @@ random inputs of the right shape, ``repr_state|repr_action/<env>``), policy lear
 evaluation of each PPO and DBC preset (env steps/s, ``train/<preset>``, ``eval/<preset>``) and
 studies (runs/s, ``study/<preset>``). PPO and DBC numbers come from ``bench/ppo_throughput.py``
 and ``bench/dbc_throughput.py`` at shortened horizons. Writes ``bench/throughput.json`` (merged
-with the keys not measured this time) and this script's section of ``BENCHMARKS.md``.
+with the keys not measured this time) and this script's section of ``docs/benchmarks.md``.
 
 ``--compare`` measures the same keys but leaves ``bench/throughput.json`` alone: it writes a section
-of ``BENCHMARKS.md`` with each key's rate here beside the table's, the machine each was measured on
+of ``docs/benchmarks.md`` with each key's rate here beside the table's, the machine each was measured on
 and their ratio, so a campaign on another kind of machine knows how far the dry run's CPU-hours
 apply there (rates measured per wall second are compared but flagged: their ratio mixes clocks).
 
@@ -268,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-write", action="store_true", help="print only")
     parser.add_argument("--compare", action="store_true",
                         help="leave bench/throughput.json alone: write this machine's rates beside the table's "
-                             "(BENCHMARKS.md section throughput_compare, one per --backend)")
+                             "(docs/benchmarks.md section throughput_compare, one per --backend)")
     args = parser.parse_args(argv)
     command = announce("throughput.py", argv)
     rates: dict[str, tuple[float, str]] = {}

@@ -76,7 +76,7 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
         rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
     machines = rate_machines()
-    if machines:  # rates move with the CPU (CNN training 2x between two 2-core VMs: BENCHMARKS.md)
+    if machines:  # rates move with the CPU (CNN training 2x between two 2-core VMs: docs/benchmarks.md)
         rows.append(f"rates measured on {', '.join(f'{cpu} ({n})' for cpu, n in machines.items())}; "
                     f"this machine: {cpu_model()}, {os.cpu_count()} cores")
     return "\n".join(rows)

@@ -1,5 +1,5 @@
 """``python -m plls_bench.resolve``: write the resolved config of every experiment preset at every
-budget profile to ``docs/resolved/<preset>/<profile>.yaml`` (``--check``: compare, write nothing).
+budget profile to ``results/resolved/<preset>/<profile>.yaml`` (``--check``: compare, write nothing).
 
 Each file is the typed config a run of ``python -m plls_bench +experiment=<preset>
 budget=<profile>`` sees (what its ``config.json`` records): composed by Hydra, interpolated and
@@ -20,7 +20,7 @@ from plls_bench.config import BUDGET_NAMES
 from plls_bench.files import atomic_write_bytes
 from plls_bench.runs import config_dict, config_hash
 
-RESOLVED_DIR = CONF_DIR.parent / "docs" / "resolved"
+RESOLVED_DIR = CONF_DIR.parent / "results" / "resolved"
 COMMAND = "python -m plls_bench.resolve"
 
 

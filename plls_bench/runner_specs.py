@@ -11,7 +11,7 @@ plain ``import`` runs only when called, so choosing one task never imports anoth
 simulator (or torch).
 
 Adding a runner is one module with a ``run(cfg, run)`` function, one entry in :data:`SPECS` and its
-config checks (README, "Adding a runner").
+config checks (docs/architecture.md, "Adding a runner").
 """
 from __future__ import annotations
 
@@ -160,7 +160,7 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               load_resume_files=_dbc_checkpoint, time_limited=True,  # a paper-budget pixel DBC's is over MAX_PARTIAL_BYTES
+               load_resume_files=_dbc_checkpoint, time_limited=True,  # pixel DBC's and state SAC's are over MAX_PARTIAL_BYTES
                checkpoints_at="episode", burst=_dbc_burst),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}

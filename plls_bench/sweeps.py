@@ -3,7 +3,7 @@
 The one source of a sweep's definition: ``reproduce --sweep NAME`` plans and launches it, and the
 results collector reads its arms. The arm of the preset's own value is the preset's own runs (no
 override, variant ``default`` or the profile's backend tag); every other value is the command-line
-override ``key=value``, so its runs land in the variant that override names (README, "Ablations").
+override ``key=value``, so its runs land in the variant that override names (docs/configuration.md, "Ablations").
 Nothing here imports torch or the simulators.
 """
 from __future__ import annotations

@@ -34,17 +34,22 @@ def one_torch_thread():
     torch.set_num_threads(threads)
 
 
-UNWRITABLE = ("under_a_file", "read_only")
+UNWRITABLE = ("under_a_file", "read_only", "takes_no_entry")
 
 
 def unwritable_path(kind: str, tmp_path: Path) -> Path:
-    """A directory path this process cannot create: ``under_a_file`` (a regular file in the way)
-    or ``read_only`` (inside a directory it may not write). As root, which CI and this machine's
+    """A directory path this process cannot create: ``under_a_file`` (a regular file in the way),
+    ``read_only`` (inside a directory it may not write) or ``takes_no_entry`` (in ``/proc``, which
+    any mode check passes). As root, which CI and this machine's
     tests run as, mode bits do not stop writes (a chmod-0555 dir is writable), so the read-only case
     uses a read-only mount (``/proc/sys`` in a container), and is skipped where there is none."""
     if kind == "under_a_file":
         (tmp_path / "a_file").write_text("")
         return tmp_path / "a_file" / "runs"
+    if kind == "takes_no_entry":  # /proc passes os.access as root but takes no new folder
+        if creation_error(Path("/proc/plls-runs")) is None:
+            pytest.skip("no /proc that refuses new entries on this system")
+        return Path("/proc/plls-runs")
     if os.geteuid() != 0:
         locked = tmp_path / "read_only"
         locked.mkdir(mode=0o555)
@@ -53,6 +58,23 @@ def unwritable_path(kind: str, tmp_path: Path) -> Path:
         if mount.is_dir() and not os.access(mount, os.W_OK | os.X_OK):
             return mount / "plls-runs"
     pytest.skip("running as root with no read-only mount (/proc/sys, /sys) to stand for a read-only dir")
+
+
+def creation_error(path: Path) -> str | None:
+    """The error creating folder ``path`` gives (it is removed again if it was created), or None."""
+    try:
+        path.mkdir()
+    except OSError as err:
+        return err.strerror
+    path.rmdir()
+    return None
+
+
+def unwritable_reason(kind: str, path: Path) -> str:
+    """What the writable-dir check says of the nearest existing folder of ``unwritable_path(kind)``."""
+    if kind == "takes_no_entry":
+        return f"takes no new entry ({creation_error(path)})"
+    return "is not a directory" if kind == "under_a_file" else "is not writable"
 
 
 def compose_preset(experiment: str | None, runs_dir: Path, *overrides: str) -> Config:

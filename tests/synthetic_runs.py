@@ -1,6 +1,6 @@
 """Synthetic run directories for testing the results collector before the experiments exist.
 
-Every file follows the README's "What each runner writes" table and is written through
+Every file follows the "What each runner writes" table (docs/architecture.md) and is written through
 :class:`plls_bench.runs.Run`; configs are composed from the shipped yaml (the group choices each
 registry preset stands for, at the given budget), never written by hand.
 """

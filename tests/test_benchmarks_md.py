@@ -1,4 +1,4 @@
-"""BENCHMARKS.md sections: every bench script assembles and replaces its section the same way."""
+"""docs/benchmarks.md sections: every bench script assembles and replaces its section the same way."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,7 +10,7 @@ from bench.benchmarks_md import announce, finish_section
 
 
 def test_a_section_is_assembled_and_replaced_in_place(tmp_path: Path) -> None:
-    path = tmp_path / "BENCHMARKS.md"
+    path = tmp_path / "benchmarks.md"
     path.write_text("# Benchmarks\n\nhand-written text\n")
     args = ("speed", "Speed (toy bench)", "nice -n 10 python toy_bench", "How it was measured.",
             ["setting", "steps/s"])
@@ -25,7 +25,7 @@ def test_a_section_is_assembled_and_replaced_in_place(tmp_path: Path) -> None:
 
 
 def test_no_write_leaves_the_file_alone(tmp_path: Path) -> None:
-    path = tmp_path / "BENCHMARKS.md"
+    path = tmp_path / "benchmarks.md"
     finish_section("s", "T", "cmd", "m", ["h"], ["| 1 |"], write=False, path=path)
     assert not path.exists()
 

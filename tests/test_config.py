@@ -10,7 +10,7 @@ import yaml
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, BudgetConfig, ConfigError
 from plls_bench.sweeps import load_sweep
-from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path
+from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path, unwritable_reason
 
 
 # algo choices run by another runner on the env's state vector (state SAC: the DBC runner)
@@ -219,8 +219,7 @@ def test_a_runs_dir_that_cannot_be_written_is_refused_in_one_line(kind: str, tmp
         done = run_cli(*multirun, "+experiment=mountaincar_data", f"runs_dir={runs}")
         assert done.returncode == 2, done.stdout + done.stderr
         assert done.stderr.strip().splitlines() == [f"plls_bench: invalid config: runs_dir: cannot create or write "
-                                                    f"{runs}: {runs.parent} is not "
-                                                    f"{'a directory' if kind == 'under_a_file' else 'writable'}"]
+                                                    f"{runs}: {runs.parent} {unwritable_reason(kind, runs)}"]
     assert not runs.exists()
 
 

@@ -1,6 +1,6 @@
 """An unfinished DBC-runner trial carried across machines as a partial record: state SAC's
 checkpoint (``dbc.pt`` with optimisers, over the per-file cap, goes in parts; its replay chunks
-travel with it), and what is refused: a record over the whole-record cap (a paper-budget pixel DBC's), or parts
+travel with it), and what is refused: a record over the whole-record cap (a pixel DBC's), or parts
 that no longer join to the file they were cut from; a checkpoint committed while the export reads
 it is read again."""
 from __future__ import annotations
@@ -82,7 +82,7 @@ def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path,
     run, _ = make_run(runs, "cheetah_dbc", 0)
     assert export_records(runs).skipped == ["cheetah_dbc/default/seed=0: status running (no checkpoint to carry)"]
     _checkpoint(run, 2**16)
-    monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)  # as a paper-budget pixel DBC's ~500 MiB is to 256 MiB
+    monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)  # as a pixel DBC's 116+ MiB is to 16 MiB
     done = export_records(runs)
     [reason] = done.skipped
     assert reason.startswith("cheetah_dbc/default/seed=0: status running (0.1 MiB to carry, over the 0 MiB")

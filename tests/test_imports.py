@@ -161,9 +161,9 @@ def test_the_checks_find_a_cycle_an_upward_import_and_a_deferred_one(tmp_path: P
     assert upward_imports(graph, layers) == ["p.low (line 2, layer low) imports p.high (layer high)"]
 
 
-def test_readme_layout_shows_the_layers_bottom_up() -> None:
-    readme = (REPO_ROOT / "README.md").read_text()
-    block = readme.split("## Layout", 1)[1].split("```", 2)[1]
+def test_the_documented_layout_shows_the_layers_bottom_up() -> None:
+    page = (REPO_ROOT / "docs" / "architecture.md").read_text()
+    block = page.split("## Layout", 1)[1].split("```", 2)[1]
     shown = re.findall(r"^  (\S(?:\S| (?! ))*)  ", block, flags=re.MULTILINE)
     assert shown == [name for name, _ in LAYERS]
 

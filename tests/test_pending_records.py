@@ -1,5 +1,5 @@
 """Pending records: an unfinished trial whose checkpoint is over the cap of a partial record (a
-paper-budget pixel DBC's) leaves its metrics so far in the records, so a lost machine does not take its curve along.
+pixel DBC's) leaves its metrics so far in the records, so a lost machine does not take its curve along.
 The record is evidence only: it keeps the furthest attempt, no run resumes from it, the dry run
 names it beside a trial that is behind it, and the finished record replaces it."""
 from __future__ import annotations
@@ -23,7 +23,7 @@ KEY = "cheetah_dbc/default/seed=0"
 
 @pytest.fixture
 def small_cap(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A whole-record cap that a 64 KiB checkpoint passes, as a paper-budget pixel DBC's ~500 MiB passes 256 MiB."""
+    """A whole-record cap that a 64 KiB checkpoint passes, as a pixel DBC's 116+ MiB passes 16 MiB."""
     monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)
 
 

@@ -37,7 +37,8 @@ def test_cli_lists_the_registry_and_renders_one_id(tmp_path: Path) -> None:
                                                (["--out", "{runs}/x"], "lies inside --runs"),
                                                (["--runs", "{runs}/nope"], "no such directory"),
                                                (["--records-only", "--records", "{runs}/nope"],
-                                                "--records-only: no records at")])
+                                                "--records-only: no records at"),
+                                               (["--records", "{runs}/nope"], "nope: no such directory")])
 def test_cli_refuses_bad_input_before_writing(tmp_path: Path, args: list[str], message: str,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     runs = tmp_path / "runs"

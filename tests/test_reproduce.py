@@ -15,7 +15,7 @@ from plls_bench.plan import list_presets, plan_profile
 from plls_bench.rates import rate_machines
 from plls_bench.reproduce import records_line
 from plls_bench.runner import execute
-from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path
+from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path, unwritable_reason
 
 MC = ["mountaincar_data", "mountaincar_va", "mountaincar_ppo"]
 
@@ -96,7 +96,7 @@ def test_a_path_that_cannot_be_written_is_refused_before_any_launch(option: str,
     done = reproduce("--profile", "smoke", "--only", "mountaincar_data", *(x for kv in paths.items() for x in kv))
     assert done.returncode == 2, done.stdout + done.stderr
     assert done.stderr.strip().splitlines() == [f"reproduce: {option}: cannot create or write {bad}: {bad.parent} "
-                                                f"is not {'a directory' if kind == 'under_a_file' else 'writable'}"]
+                                                f"{unwritable_reason(kind, bad)}"]
     assert done.stdout == "" and not runs.exists() and not (tmp_path / "out").exists(), "nothing planned or run"
 
 

@@ -1,4 +1,4 @@
-"""The committed resolved configs (docs/resolved/) are exactly what the presets compose to today."""
+"""The committed resolved configs (results/resolved/) are exactly what the presets compose to today."""
 from __future__ import annotations
 
 import difflib
@@ -20,7 +20,7 @@ def test_committed_resolved_configs_match_the_composed_presets() -> None:
         first.read_text().splitlines() if first.is_file() else [], files[first].splitlines(),
         "committed", "composed", lineterm="", n=1))[:20])
     assert not stale, (f"{len(stale)} resolved config(s) differ from what the presets compose to; "
-                       f"regenerate them with `{resolve.COMMAND}` and commit docs/resolved/:\n"
+                       f"regenerate them with `{resolve.COMMAND}` and commit results/resolved/:\n"
                        + "\n".join(stale) + (f"\nfirst difference:\n{diff}" if diff else ""))
 
 

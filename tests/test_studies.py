@@ -26,7 +26,7 @@ from tests.synthetic_runs import finish, make_run
 
 PRESETS = {"multistep": "mountaincar_multistep", "onestep": "mountaincar_onestep",
            "generalisation": "mountaincar_generalisation"}
-# The README's "What each runner writes" arrays at the paper's sizes (D = V_a's latent size).
+# The "What each runner writes" arrays (docs/architecture.md) at the paper's sizes (D = V_a's latent size).
 D = 3
 CONTRACT = {
     "multistep": {"actions": (1000,), "mu": (1000, D), "e": (1000, D), "decoded": (1000,),

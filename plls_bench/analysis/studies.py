@@ -4,7 +4,7 @@ Every study samples actions (``study.action_ranges``), encodes them with V_a to 
 ``study.samples_per_action`` latents e = mu + std * eps each, decodes ``study.decode`` (e, or mu)
 to reconstructed actions a_hat (clipped to the action box, as PL-LS's action path does), and
 drives the car with raw and reconstructed actions from ``study.s0``: in sequence (``multistep``)
-or one step each (``onestep``, ``generalisation``). It writes the README's
+or one step each (``onestep``, ``generalisation``). It writes docs/architecture.md's
 ``studies/<name>.npz`` arrays and ``metrics/study.json``, whose numbers (see :func:`structure`,
 :func:`reconstruction`, :func:`dynamics`) make the paper's claims checkable.
 """

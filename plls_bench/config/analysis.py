@@ -55,7 +55,7 @@ class StudyConfig(Validated):
         check_positive(self.tracking_tolerance, "study.tracking_tolerance")
         if self.name == "generalisation":
             check(self.decode == "e", "study.decode", "generalisation decodes its samples e; mu is one point")
-        else:  # the README's arrays hold one e per action for these studies
+        else:  # docs/architecture.md's arrays hold one e per action for these studies
             check(self.samples_per_action == 1, "study.samples_per_action", f"{self.name} takes one e per action")
         check(self.knn < self.n_actions, "study.knn", f"must be < the {self.n_actions} actions")
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+import tempfile
 from dataclasses import fields
 from pathlib import Path
 
@@ -40,14 +41,29 @@ def check_fraction(value: float, key: str, *, open_right: bool = True) -> None:
 
 def check_writable_dir(path: str, key: str) -> None:
     """Raise :class:`ConfigError` naming ``key`` unless ``path`` is a directory this process can
-    create or write into. Creates nothing: the nearest existing ancestor must be a directory with
-    write and search permission. A machine-side check for commands about to write (not part of
-    :meth:`Validated.validate`: recorded configs name paths of other machines). As root, only a
-    read-only mount fails ``os.access``; a mode-0555 directory still passes, as root may write there."""
+    create or write into. Leaves nothing behind: the nearest existing ancestor must be a directory
+    with write and search permission that accepts a new entry. A machine-side check for commands
+    about to write (not part of :meth:`Validated.validate`: recorded configs name paths of other
+    machines). As root, only a read-only mount fails ``os.access``; a mode-0555 directory still
+    passes, as root may write there, and a folder that passes ``os.access`` but takes no new entry
+    (``/proc``) fails the probe."""
     target = Path(os.path.abspath(path))
     existing = next(p for p in (target, *target.parents) if p.exists())  # "/" always exists
     check(existing.is_dir(), key, f"cannot create or write {path}: {existing} is not a directory")
     check(os.access(existing, os.W_OK | os.X_OK), key, f"cannot create or write {path}: {existing} is not writable")
+    refused = _refuses_entries(existing)
+    check(refused is None, key, f"cannot create or write {path}: {existing} takes no new entry ({refused})")
+
+
+def _refuses_entries(folder: Path) -> str | None:
+    """Why ``folder`` refuses a new entry although its mode allows one (a pseudo file system such as
+    ``/proc``, a full disk), or None. Tried with a temporary folder, removed at once."""
+    try:
+        probe = tempfile.mkdtemp(prefix=".plls-write-check-", dir=folder)
+    except OSError as err:
+        return err.strerror or type(err).__name__
+    os.rmdir(probe)
+    return None
 
 
 class Validated:

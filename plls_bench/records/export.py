@@ -241,7 +241,7 @@ def _count_pending(done: Exported, key: str, result: tuple[bool, list[str]] | st
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m plls_bench.records",
                                      description="Export finished and unfinished non-smoke runs into the "
-                                                 "committed records (README: Results collector).")
+                                                 "committed records (docs/results.md: Results collector).")
     parser.add_argument("--runs", default="results/runs", help="root of the run directories (read only)")
     parser.add_argument("--records", default=None, help="records folder (default: 'records' beside --runs)")
     parser.add_argument("--replace", action="store_true",

@@ -1,8 +1,9 @@
 """Pending records: the metrics so far of an unfinished trial whose checkpoint cannot be carried.
 
-A paper-budget pixel DBC trial's agent with its optimisers (116 MiB) and its frame replay (about
-400 MiB at 125k transitions) are over :data:`~plls_bench.records.layout.MAX_PARTIAL_BYTES`, so
-its run dir resumes it only on the machine that holds it. Its curve need not be lost with that machine: ``python -m
+A pixel DBC trial's agent with its optimisers (116 MiB) and its frame replay (3.2 MiB per 1000
+transitions), or a state-SAC trial's 45 MiB ``dbc.pt``, are over
+:data:`~plls_bench.records.layout.MAX_PARTIAL_BYTES` (16 MiB: stopped CNN PPO trials fit), so its
+run dir resumes it only on the machine that holds it. Its curve need not be lost with that machine: ``python -m
 plls_bench.records`` writes ``pending/<experiment>/<variant>/seed=<k>/`` with the record files
 (``config.json``, ``status.json``, ``provenance.json``, ``metrics/``) and ``pending.json`` (the
 iteration its rows reach, why the checkpoint stayed behind). A pending record is evidence only: no

@@ -10,6 +10,7 @@ import argparse
 import logging
 import shlex
 import sys
+from pathlib import Path
 
 from plls_bench.records import records_dir_for
 from plls_bench.report.collect import PAPER_DIR, ReportError, render_all
@@ -49,6 +50,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     command = shlex.join(["python", "-m", "plls_bench.report", *(sys.argv[1:] if argv is None else argv)])
+    if args.records is not None and not args.records_only and not Path(args.records).is_dir():
+        # the default beside --runs may be absent (a runs dir of one's own); a folder named must exist
+        print(f"plls_bench.report: --records {args.records}: no such directory", file=sys.stderr)
+        return 2
     try:
         records = None if args.no_records else (args.records or records_dir_for(args.runs))
         statuses = render_all(None if args.records_only else args.runs, args.out, args.only, args.x_axis, args.paper,

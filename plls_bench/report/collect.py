@@ -16,6 +16,7 @@ from plls_bench.files import atomic_write_bytes, atomic_write_json, read_json
 from plls_bench.progress import progress_bar
 from plls_bench.report.base import Entry, IdStatus, Options, Output
 from plls_bench.report.claims import read_claims
+from plls_bench.report.headline import write_front_page
 from plls_bench.report.load import Runs
 from plls_bench.report.plot import DPI, save_figure
 from plls_bench.report.readme import write_readme
@@ -121,6 +122,7 @@ def render_all(runs_dir: str | Path | None, out_dir: str | Path, only: Iterable[
             "x_axis": x_axis, "command": command}
     atomic_write_json(out_dir / "index.json", {"meta": meta, "ids": [asdict(s) for s in index]})
     write_readme(out_dir, runs_dir, index, meta)
+    write_front_page(out_dir)  # the repository README's headline, when out_dir is this checkout's results/
     return rendered
 
 

@@ -1,5 +1,5 @@
 """MountainCar latent-space studies (Figs 7, 8, 9): 3-D scatters of action representations e with
-RGB colouring, and the state effect of raw vs reconstructed actions. Arrays follow the README's
+RGB colouring, and the state effect of raw vs reconstructed actions. Arrays follow docs/architecture.md's
 ``studies/<study>.npz`` contract; one study run is drawn (the lowest seed that has it). A V_a
 with a latent size other than the paper's 3 is drawn in its first three principal components
 (fewer dims are padded with zeros), and the axes say so."""

@@ -3,7 +3,7 @@
 Each registry id gets a fresh :class:`Runs` view; everything it could not read (a missing run or
 seed, a torn jsonl line, a failed or unfinished run, a corrupt file) is recorded as a :class:`Gap`
 in that view, so the id reports exactly the gaps that touch it. Only the files listed in the
-README's "What each runner writes" table are read.
+docs/architecture.md's "What each runner writes" table are read.
 
 Trials come from the runs dir and from the committed records (``plls_bench/records/``; partial
 records, under ``records/partial/``, are not trials: only ``<records>/<experiment>/<variant>``; see

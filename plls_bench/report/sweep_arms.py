@@ -22,7 +22,7 @@ from plls_bench.report.returns import Curves, load_curves
 from plls_bench.report.trials import Experiment
 from plls_bench.sweeps import Sweep
 
-# V_a's test MSE under both readings the suite reports (README, "What each runner writes").
+# V_a's test MSE under both readings the suite reports (docs/architecture.md, "What each runner writes").
 MSE_READINGS = {"test_mse": "z sampled", "test_mse_posterior_mean": "decode(mu)"}
 
 

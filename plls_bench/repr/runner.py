@@ -21,7 +21,7 @@ log = logging.getLogger(__name__)
 
 
 def run(cfg: Config, run: Run) -> None:
-    """Runner ``repr``: train (or reuse) every model the config turns on; write the README's
+    """Runner ``repr``: train (or reuse) every model the config turns on; write docs/architecture.md's
     ``metrics/repr_train.jsonl``, ``repr_test.json``, ``params.json``, ``architecture.json`` and
     ``samples/{state,action}_reconstructions.npz`` into the run."""
     reprs = ensure_representations(cfg)

@@ -39,7 +39,7 @@ from plls_bench.signals import signals_deferred
 
 @dataclass(frozen=True)
 class Progress:
-    """Where a run stands. ``iteration`` counts the runner's unit (its trainer's docstring; README
+    """Where a run stands. ``iteration`` counts the runner's unit (its trainer's docstring; docs/architecture.md,
     "What each runner writes"): PPO one rollout of ``n_envs x n_steps`` and its update, DBC one
     agent step. ``agent_steps`` counts steps of the learner's env (each env of a vector env),
     ``env_steps`` frames (agent steps x action repeat); ``wall_s`` sums over restarts;

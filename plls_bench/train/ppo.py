@@ -82,7 +82,7 @@ class PPOTrainer:
         cfg, ppo = self.cfg, self.ppo
         reprs = ensure_representations(cfg)  # V_s / V_a built if missing, loaded once for both envs
         if reprs.artifacts and not (self.run.metrics_dir / "repr_test.json").is_file():  # first start only
-            self.run.write_json("metrics/repr_test.json", model_test_metrics(reprs))  # each N_e's V_a MSE (README)
+            self.run.write_json("metrics/repr_test.json", model_test_metrics(reprs))  # each N_e's V_a MSE (ablations)
         self.train_env = normalize.wrap_training(build_vec_env(cfg, ppo.n_envs, self.seeds.train, reprs), ppo)
         self.eval_env = normalize.wrap_frozen(build_vec_env(cfg, min(ppo.eval_envs, cfg.budget.eval_episodes),
                                                             self.seeds.eval, reprs), ppo)

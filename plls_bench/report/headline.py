@@ -1,0 +1,81 @@
+"""The front page's headline results: claim counts, one short table of paper vs suite vs verdict per
+task, one figure. Built from the claims table the collector has just written and put into the
+repository's ``README.md`` between two markers, so the front page cannot go stale:
+``tests/test_front_page.py`` fails when the committed block differs from what ``results/`` gives."""
+from __future__ import annotations
+
+import csv
+from collections import Counter
+from pathlib import Path
+
+from plls_bench.files import atomic_write_bytes
+
+REPO = Path(__file__).resolve().parents[2]
+FRONT_PAGE = REPO / "README.md"
+RESULTS = REPO / "results"  # only a collector writing here updates the front page
+START = "<!-- headline: written by `python -m plls_bench.report`; edit plls_bench/report/headline.py, not this -->"
+END = "<!-- /headline -->"
+# The claims the front page shows, per task: the paper's main comparison on each, and the readings
+# that decide it (exploration on MountainCar, sampled actions on CarRacing, the DBC baseline check).
+HEADLINE_CLAIMS = (
+    ("MountainCar", "PL-LS with PPO beats PPO on MountainCar (final return) [Gaussian exploration, literal]"),
+    ("MountainCar", "PL-LS with PPO beats PPO on MountainCar (final return) [gSDE exploration]"),
+    ("CarRacing", "PL-LS with PPO beats PPO on CarRacing (final return)"),
+    ("CarRacing", "PL-LS with PPO beats PPO on CarRacing (final return; sampled actions)"),
+    ("CarRacing", "PL-LS (V_s + V_a) beats PPO + V_s only (final return)"),
+    ("cheetah-run", "PL-LS with DBC obtains higher returns than DBC (final return)"),
+    ("cheetah-run", "Suite DBC reaches the published pixel range on cheetah-run at 100k env steps (final return)"),
+)
+FIGURE = ("Fig. 18: CarRacing, PL-LS + PPO against PPO", "results/figures/fig18.png")
+VERDICT_ORDER = ("reproduced", "not reproduced", "inconclusive")  # others follow in the table's order
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ") or "—"
+
+
+def build_headline(results_dir: Path) -> str:
+    """The block between the markers (markers included) from ``results_dir/tables/claims.csv``."""
+    with open(Path(results_dir) / "tables" / "claims.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    counts = Counter(row["verdict"] for row in rows)
+    order = [v for v in VERDICT_ORDER if v in counts] + [v for v in counts if v not in VERDICT_ORDER]
+    by_claim = {row["claim"]: row for row in rows}
+    lines = [START, "",
+             f"**{len(rows)} claims judged** (every quantitative claim of the paper, and the baseline checks): "
+             + ", ".join(f"{counts[v]} {v}" for v in order) + ". Full table: "
+             "[results/tables/claims.md](results/tables/claims.md); every table and figure: "
+             "[results/README.md](results/README.md).", "",
+             "| Task | Claim | Paper | Suite [95% CI] | Verdict |", "|---|---|---|---|---|"]
+    for task, claim in HEADLINE_CLAIMS:
+        row = by_claim.get(claim)
+        if row is None:
+            lines.append(f"| {task} | {_cell(claim)} | — | — | not in the claims table |")
+        else:
+            lines.append(f"| {task} | {_cell(claim)} | {_cell(row['paper'])} | {_cell(row['suite'])} "
+                         f"| {_cell(row['verdict'])} |")
+    title, path = FIGURE
+    lines += ["", f"![{title}]({path})", "", END]
+    return "\n".join(lines)
+
+
+def with_headline(page: str, block: str) -> str:
+    """``page`` with the text between its markers replaced by ``block``; ValueError without them."""
+    start, end = page.find(START), page.find(END)
+    if start < 0 or end < start:
+        raise ValueError(f"the front page has no `{START}` ... `{END}` block")
+    return page[:start] + block + page[end + len(END):]
+
+
+def write_front_page(out_dir: Path) -> bool:
+    """Rewrite the README's headline when ``out_dir`` is this checkout's ``results/`` (not a smoke
+    or test output folder) and the README holds the markers; True when it was written."""
+    if Path(out_dir).resolve() != RESULTS or not FRONT_PAGE.is_file():
+        return False
+    page = FRONT_PAGE.read_text()
+    if START not in page:
+        return False
+    updated = with_headline(page, build_headline(RESULTS))
+    if updated != page:
+        atomic_write_bytes(FRONT_PAGE, updated.encode())
+    return True

@@ -1,0 +1,66 @@
+"""The README's headline results are the collector's: the committed block is what the committed
+results/ give, every claim it names is in the claims table, and the collector rewrites the block
+only in this checkout's README, between its markers."""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+
+from plls_bench.report import headline
+from plls_bench.report.headline import END, HEADLINE_CLAIMS, START, build_headline, with_headline
+from tests.conftest import REPO_ROOT
+
+
+def test_the_committed_headline_is_what_the_committed_results_give() -> None:
+    page = (REPO_ROOT / "README.md").read_text()
+    block = build_headline(REPO_ROOT / "results")
+    assert with_headline(page, block) == page, (
+        "README.md's headline is stale: regenerate results/ with "
+        "`python -m plls_bench.report --records-only`, which rewrites it")
+    assert page.index(START) < 40 * 80, "the headline sits near the top of the front page"
+
+
+def test_every_headline_claim_is_a_claim_of_the_paper_table() -> None:
+    with open(REPO_ROOT / "results" / "paper" / "claims.csv", newline="") as handle:
+        claims = {row["claim"] for row in csv.DictReader(handle)}
+    missing = [claim for _, claim in HEADLINE_CLAIMS if claim not in claims]
+    assert not missing, ("plls_bench/report/headline.py names claims results/paper/claims.csv lacks:\n"
+                         + "\n".join(missing))
+    figure = REPO_ROOT / headline.FIGURE[1]
+    assert figure.is_file(), f"the headline figure {figure} is not in results/"
+
+
+def test_the_block_counts_verdicts_and_tables_the_named_claims(tmp_path: Path) -> None:
+    (tmp_path / "tables").mkdir()
+    named = HEADLINE_CLAIMS[0][1]
+    rows = [{"claim": named, "paper": "P | x", "suite": "0.5 [0, 1]", "verdict": "inconclusive"},
+            {"claim": "another", "paper": "1", "suite": "2", "verdict": "reproduced"},
+            {"claim": "a third", "paper": "1", "suite": "2", "verdict": "reproduced"}]
+    with open(tmp_path / "tables" / "claims.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    block = build_headline(tmp_path)
+    assert block.startswith(START) and block.endswith(END)
+    assert "**3 claims judged**" in block and "2 reproduced, 1 inconclusive" in block
+    assert f"| {HEADLINE_CLAIMS[0][0]} | {named} | P \\| x | 0.5 [0, 1] | inconclusive |" in block
+    assert block.count("not in the claims table") == len(HEADLINE_CLAIMS) - 1
+    page = f"# T\n\nintro\n{START}\nold\n{END}\nrest\n"
+    assert with_headline(page, block) == f"# T\n\nintro\n{block}\nrest\n"
+    with pytest.raises(ValueError, match="no `<!-- headline"):
+        with_headline("# no markers\n", block)
+
+
+def test_only_this_checkouts_results_rewrite_the_readme(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    front = tmp_path / "README.md"
+    monkeypatch.setattr(headline, "FRONT_PAGE", front)
+    monkeypatch.setattr(headline, "RESULTS", (REPO_ROOT / "results").resolve())
+    front.write_text(f"# T\n{START}\nold\n{END}\n")
+    assert not headline.write_front_page(tmp_path / "results")  # a smoke or test output folder
+    assert "old" in front.read_text()
+    assert headline.write_front_page(REPO_ROOT / "results")
+    assert front.read_text() == f"# T\n{build_headline(REPO_ROOT / 'results')}\n"
+    front.write_text("# T without markers\n")
+    assert not headline.write_front_page(REPO_ROOT / "results") and front.read_text() == "# T without markers\n"
