@@ -34,6 +34,19 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ") or "—"
 
 
+def _first_clause(suite: str) -> str:
+    """The suite's value without the readings the full table adds after it (its first clause)."""
+    return suite.split("; ")[0]
+
+
+def _test_text(row: dict[str, str]) -> str:
+    """The decision's test, statistic and (Holm-adjusted) p, when the row was tested."""
+    if row.get("test") in ("", "none", None) or not row.get("p"):
+        return ""
+    p = row.get("p_adjusted") or row["p"]
+    return f"{row['test']} = {float(row['statistic']):.3g}, p = {float(p):.2g}"
+
+
 def build_headline(results_dir: Path) -> str:
     """The block between the markers (markers included) from ``results_dir/tables/claims.csv``."""
     with open(Path(results_dir) / "tables" / "claims.csv", newline="") as handle:
@@ -46,14 +59,14 @@ def build_headline(results_dir: Path) -> str:
              + ", ".join(f"{counts[v]} {v}" for v in order) + ". Full table: "
              "[results/tables/claims.md](results/tables/claims.md); every table and figure: "
              "[results/README.md](results/README.md).", "",
-             "| Task | Claim | Paper | Suite [95% CI] | Verdict |", "|---|---|---|---|---|"]
+             "| Task | Claim | Paper | Suite | Test | Verdict |", "|---|---|---|---|---|---|"]
     for task, claim in HEADLINE_CLAIMS:
         row = by_claim.get(claim)
         if row is None:
-            lines.append(f"| {task} | {_cell(claim)} | — | — | not in the claims table |")
+            lines.append(f"| {task} | {_cell(claim)} | — | — | — | not in the claims table |")
         else:
-            lines.append(f"| {task} | {_cell(claim)} | {_cell(row['paper'])} | {_cell(row['suite'])} "
-                         f"| {_cell(row['verdict'])} |")
+            lines.append(f"| {task} | {_cell(claim)} | {_cell(row['paper'])} | {_cell(_first_clause(row['suite']))} "
+                         f"| {_cell(_test_text(row))} | {_cell(row['verdict'])} |")
     title, path = FIGURE
     lines += ["", f"![{title}]({path})", "", END]
     return "\n".join(lines)
