@@ -35,9 +35,12 @@ def test_every_headline_claim_is_a_claim_of_the_paper_table() -> None:
 def test_the_block_counts_verdicts_and_tables_the_named_claims(tmp_path: Path) -> None:
     (tmp_path / "tables").mkdir()
     named = HEADLINE_CLAIMS[0][1]
-    rows = [{"claim": named, "paper": "P | x", "suite": "0.5 [0, 1]", "verdict": "inconclusive"},
-            {"claim": "another", "paper": "1", "suite": "2", "verdict": "reproduced"},
-            {"claim": "a third", "paper": "1", "suite": "2", "verdict": "reproduced"}]
+    tested = HEADLINE_CLAIMS[1][1]
+    fields = {"test": "", "statistic": "", "p": "", "p_adjusted": ""}
+    rows = [{"claim": named, "paper": "P | x", "suite": "0.5 [0, 1]; a reading", "verdict": "inconclusive", **fields},
+            {"claim": tested, "paper": "1", "suite": "3 vs 2", "verdict": "reproduced",
+             "test": "Welch t", "statistic": "3.14159", "p": "0.004", "p_adjusted": "0.012"},
+            {"claim": "a third", "paper": "1", "suite": "2", "verdict": "reproduced", **fields}]
     with open(tmp_path / "tables" / "claims.csv", "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -45,8 +48,9 @@ def test_the_block_counts_verdicts_and_tables_the_named_claims(tmp_path: Path) -
     block = build_headline(tmp_path)
     assert block.startswith(START) and block.endswith(END)
     assert "**3 claims judged**" in block and "2 reproduced, 1 inconclusive" in block
-    assert f"| {HEADLINE_CLAIMS[0][0]} | {named} | P \\| x | 0.5 [0, 1] | inconclusive |" in block
-    assert block.count("not in the claims table") == len(HEADLINE_CLAIMS) - 1
+    assert f"| {HEADLINE_CLAIMS[0][0]} | {named} | P \\| x | 0.5 [0, 1] | — | inconclusive |" in block
+    assert f"| {tested} | 1 | 3 vs 2 | Welch t = 3.14, p = 0.012 | reproduced |" in block, "Holm-adjusted p"
+    assert block.count("not in the claims table") == len(HEADLINE_CLAIMS) - 2
     page = f"# T\n\nintro\n{START}\nold\n{END}\nrest\n"
     assert with_headline(page, block) == f"# T\n\nintro\n{block}\nrest\n"
     with pytest.raises(ValueError, match="no `<!-- headline"):
