@@ -9,7 +9,7 @@ The env and agent are built as the ``dbc`` runner builds them (``budget=quick``:
 launcher's batch size 128 and hidden size 1024), from a V_a artifact that must already exist
 under ``--runs`` for PL-LS presets (nothing is trained here). Acting: ``--steps`` agent steps of the training
 VecEnv (render, frame stack, stochastic policy forward, replay insert; no updates), reported in
-env steps (frames, action repeat 4) per second. Updates: median time of ``--updates`` full DBC
+env steps (frames, counting the preset's action repeat) per second. Updates: median time of ``--updates`` full DBC
 updates (critic, bisimulation/transition/reward, actor and temperature on even steps, targets)
 on minibatches sampled from the replay filled by the acting phase. ``--layouts``: ``channels_last``
 is the suite's (every conv trunk runs in its weights' layout, ``plls_bench/trunks.py``);

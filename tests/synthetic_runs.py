@@ -30,7 +30,7 @@ PRESETS: dict[str, list[str]] = {
                                                    "mountaincar_multistep", "mountaincar_onestep",
                                                    "mountaincar_generalisation", "mountaincar_ppo_gsde",
                                                    "mountaincar_plls_ppo_gsde", "mountaincar_ppo_zoo",
-                                                   "cheetah_sac_state")},
+                                                   "cheetah_sac_state", "cheetah_sac_pixel")},
     "cheetah_dbc": DBC,
     "cheetah_plls_dbc": [*DBC, "repr/action=vae"],
     "mountaincar_va": ["env=mountaincar", "runner=repr", "repr/action=vae"],

@@ -15,6 +15,8 @@ from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path, un
 
 # algo choices run by another runner on the env's state vector (state SAC: the DBC runner)
 STATE_ALGOS = {"sac_state": ["runner=dbc", "env.pixels=false"]}
+# algo choices of the DBC runner whose name does not start with dbc (pixel SAC: cheetah's pixels)
+DBC_RUNNER_ALGOS = {**STATE_ALGOS, "sac_pixel": ["runner=dbc"]}
 
 
 def overrides_for(yaml_path: Path) -> list[str]:
@@ -37,8 +39,8 @@ def overrides_for(yaml_path: Path) -> list[str]:
         return [f"+filmstrip={name}", f"env={name}"]
     if group == "algo/exploration":  # PPO's exploration settings; none goes with the other learners
         return ["algo=none"] if name == "none" else ["algo=ppo", "runner=ppo", f"algo/exploration={name}"]
-    if group == "algo" and name in STATE_ALGOS:
-        return [f"algo={name}", "env=cheetah", *STATE_ALGOS[name]]
+    if group == "algo" and name in DBC_RUNNER_ALGOS:
+        return [f"algo={name}", "env=cheetah", *DBC_RUNNER_ALGOS[name]]
     if group in ("env", "budget", "algo", "repr/state", "repr/action"):
         extra = ["runner=ppo"] if name.startswith("ppo") else []
         extra += ["env=mountaincar"] if group == "algo" and not name.startswith("dbc") else []
@@ -63,9 +65,12 @@ def overrides_for(yaml_path: Path) -> list[str]:
     if group == "env/backend":  # <env>_<profile>: the simulator engine a profile uses for a task
         env, profile = name.rsplit("_", 1)
         return [f"env={env}", f"budget={profile}"]
+    if group == "env/per_algo":  # <env>_<algo>: an env setting a learner's reference sets per task
+        env, algo = name.split("_", 1)  # the algo choice may hold "_" (dbc_readme)
+        return [f"env={env}", f"algo={algo}", *DBC_RUNNER_ALGOS.get(algo, [])]
     if group in ("algo/per_budget", "budget/per_recipe"):  # <algo>_<env>_<profile>
         algo, env, profile = name.rsplit("_", 2)  # the algo choice may hold "_" (dbc_readme)
-        runner = STATE_ALGOS.get(algo, [f"runner={algo.split('_')[0]}"])
+        runner = DBC_RUNNER_ALGOS.get(algo, [f"runner={algo.split('_')[0]}"])
         return [f"algo={algo}", *runner, f"env={env}", f"budget={profile}"]
     raise AssertionError(f"no composition rule for {rel}: add one to tests/test_config.py")
 

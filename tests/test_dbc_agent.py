@@ -80,8 +80,9 @@ def test_soft_target_update_moves_by_tau(runs_dir: Path) -> None:
     assert torch.allclose(enc_target, enc_old + cfg.encoder_tau * (enc - enc_old), atol=1e-6)
 
 
-def test_checkpoint_state_restores_identical_learning(runs_dir: Path) -> None:
-    cfg = small_cfg(runs_dir)
+@pytest.mark.parametrize("encoder", ["bisim", "critic"])  # critic: pixel SAC, no representation models
+def test_checkpoint_state_restores_identical_learning(encoder: str, runs_dir: Path) -> None:
+    cfg = small_cfg(runs_dir, f"algo.dbc.encoder={encoder}")
     torch.manual_seed(0)
     agent = DBCAgent((9, 84, 84), 6, cfg)
     for step in range(3):
@@ -98,11 +99,12 @@ def test_checkpoint_state_restores_identical_learning(runs_dir: Path) -> None:
     assert agent.log_alpha.item() == clone.log_alpha.item()
 
 
-@pytest.mark.parametrize("encoder", ["bisim", "identity"])
+@pytest.mark.parametrize("encoder", ["bisim", "critic", "identity"])
 def test_learns_a_contextual_bandit_from_random_actions(encoder: str, runs_dir: Path) -> None:
     """Reward 1 - ||a - tanh(W x)||^2 / A for context x: a random policy gets about 0.2; the
-    whole update (critic, actor, temperature, representation losses with ``bisim``; state SAC's
-    critic, actor and temperature alone with ``identity``) must get close to 1."""
+    whole update (critic, actor, temperature, representation losses with ``bisim``; the same encoder
+    trained by the critic alone with ``critic``; state SAC's critic, actor and temperature alone with
+    ``identity``) must get close to 1."""
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
     dim, action_dim, n = 4, 2, 4096

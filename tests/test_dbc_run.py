@@ -22,7 +22,7 @@ from plls_bench.train.dbc import DBCTrainer
 from plls_bench.train.loop import Progress
 from tests.conftest import REPO_ROOT, compose_preset
 
-# smoke budget: 400 env steps (100 agent steps at action repeat 4), evaluations every 200
+# smoke budget: 400 env steps (200 agent steps at cheetah_dbc's action repeat 2), evaluations every 200
 EVAL_STEPS = [0, 200, 400]
 TRAIN_KEYS = {"env_steps", "iteration", "agent_steps", "wall_s", "loss/critic", "loss/actor", "loss/alpha",
               "loss/encoder_bisim", "loss/transition", "loss/reward", "train/latent_batch_std", "perf/updates_per_s",
@@ -45,13 +45,18 @@ def wait_for_evaluations(run_dir: Path, process: subprocess.Popen, count: int, t
     raise AssertionError(f"no checkpoint after {count} evaluations within {timeout}s")
 
 
+def action_repeat(run_dir: Path) -> int:
+    """The action repeat the run was made with (its recorded config)."""
+    return read_json(run_dir / "config.json")["config"]["env"]["action_repeat"]
+
+
 def check_contract(run_dir: Path) -> list[dict]:
     assert read_json(run_dir / "status.json")["state"] == "done"
     evals = read_jsonl(run_dir / "metrics" / "eval.jsonl")
     assert [r["env_steps"] for r in evals] == EVAL_STEPS, "one row per evaluation, none lost or repeated"
     for row in evals:
-        assert row["agent_steps"] == row["iteration"] == row["env_steps"] // 4
-        # smoke budget: budget.eval_max_steps = 50 cuts the 250-step test episode
+        assert row["agent_steps"] == row["iteration"] == row["env_steps"] // action_repeat(run_dir)
+        # smoke budget: budget.eval_max_steps = 50 cuts the 500-step test episode
         assert len(row["episode_returns"]) == len(row["episode_lengths"]) == 1
         assert row["episode_lengths"] == [50] and row["return_mean"] == row["episode_returns"][0]
     train = read_jsonl(run_dir / "metrics" / "train.jsonl")
@@ -91,10 +96,13 @@ def test_cheetah_dbc_from_pixels_survives_sigkill_and_resumes(runs_dir: Path) ->
     assert evals[:2] == before[:2], "rows before the checkpoint are kept unchanged"
     assert len(read_json(run_dir / "provenance.json")["starts"]) == 2
     progress = read_json(run_dir / "checkpoints" / "progress.json")
-    # 51 slots restored (50 transitions + reset frame), a fresh episode on resume (1), 50 more
-    assert progress["replay_written"] == 102 and progress["agent_steps"] == 100
+    # at action repeat 2: 101 slots restored (100 transitions + reset frame), a fresh episode on resume (1),
+    # 100 more; the replay holds the run's 200 transitions, one reset frame per episode begun, and one spare
+    half = EVAL_STEPS[1] // action_repeat(run_dir)
+    assert action_repeat(run_dir) == 2 and progress["replay_written"] == 2 * half + 2
+    assert progress["agent_steps"] == 2 * half
     output = done.stdout + done.stderr  # memory use is reported at start
-    assert "replay: 102 slots" in output and "reference layout 190548 bytes/transition" in output
+    assert f"replay: {2 * half + 2} slots" in output and "reference layout 190548 bytes/transition" in output
 
 
 @pytest.mark.slow

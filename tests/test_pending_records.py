@@ -65,7 +65,7 @@ def test_a_pending_record_keeps_the_furthest_attempt_and_the_dry_run_names_it(
     [plan] = plan_profile("quick", str(runs), only=["cheetah_dbc"], rates={})
     trial = plan.trials[0]
     assert (trial.resumes_at, trial.resumes_from, trial.lost_at) == (0, "", 50), "nothing resumes from it"
-    assert "behind: cheetah_dbc seed=0 at iteration 0/25,000; an earlier attempt reached 50" in format_plan([plan], 1)
+    assert "behind: cheetah_dbc seed=0 at iteration 0/50,000; an earlier attempt reached 50" in format_plan([plan], 1)
 
     restarted = _trained_to(make_run(runs, "cheetah_dbc", 0)[0], range(0, 30, 10))
     pending = tmp_path / "results" / "records" / PENDING_DIR / KEY

@@ -89,7 +89,7 @@ def test_dbc_rates_add_acting_and_update_time_on_the_chosen_clock(
     cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
     args = throughput.argparse.Namespace(clock="cpu", budget="quick", runs=str(runs_dir), dbc_steps=1, dbc_updates=1)
     (train, unit), (acting, _) = MEASURES["dbc_steps"].measure(cfg, rate_keys(cfg), args, ())
-    # action repeat 4: one CPU-second update per 4 env steps, plus 1/200 s of acting per env step
+    # one CPU-second update per action_repeat env steps, plus 1/200 s of acting per env step
     assert unit == "env steps per CPU-s" and acting == 200.0
     assert train == pytest.approx(1.0 / (1.0 / 200.0 + 1.0 / cfg.env.action_repeat))
 

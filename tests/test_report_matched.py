@@ -197,11 +197,11 @@ def test_plain_ppo_is_checked_against_the_random_policy_seed_by_seed(tmp_path: P
 
 def test_dbc_is_checked_against_the_lowest_published_pixel_score_at_100k_env_steps(tmp_path: Path) -> None:
     text = "Suite DBC reaches the published pixel range"
-    arm(tmp_path / "stuck", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: 1.0 + seed)
+    arm(tmp_path / "stuck", "cheetah_dbc", 3, [0, 25_000, 50_000], lambda seed, i: 1.0 + seed)
     stuck = row(claims(tmp_path / "stuck", tmp_path / "out1"), text)
     assert (stuck["verdict"], stuck["suite_value"]) == ("not reproduced", 2.0)
-    assert stuck["budget"] == "quick (3 trials), at 100,000 env steps (iteration 25,000)"
-    arm(tmp_path / "runs", "cheetah_dbc", 3, [0, 12_500, 25_000], lambda seed, i: 250.0 + 10.0 * seed)
+    assert stuck["budget"] == "quick (3 trials), at 100,000 env steps (iteration 50,000)"  # action repeat 2
+    arm(tmp_path / "runs", "cheetah_dbc", 3, [0, 25_000, 50_000], lambda seed, i: 250.0 + 10.0 * seed)
     reaches = row(claims(tmp_path / "runs", tmp_path / "out2"), text)  # 260 ± t(0.975, 2) x 10 / sqrt(3)
     assert reaches["verdict"] == "reproduced" and "t-interval [235.2, 284.8]" in reaches["suite"]
 
@@ -211,8 +211,8 @@ def test_a_comparison_with_a_baseline_that_fails_its_check_is_not_made(tmp_path:
     DBC "beats" it in every pair of trials, but the rows are not made, and say why and what they
     would have read. With a DBC that reaches the published range the same PL-LS arm is judged."""
     plls = "PL-LS with DBC obtains higher returns than DBC"
-    arm(tmp_path / "stuck", "cheetah_plls_dbc", 5, [0, 12_500, 25_000], lambda seed, i: 50.0 + seed)
-    arm(tmp_path / "stuck", "cheetah_dbc", 5, [0, 12_500, 25_000], lambda seed, i: 1.0 + seed)
+    arm(tmp_path / "stuck", "cheetah_plls_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 50.0 + seed)
+    arm(tmp_path / "stuck", "cheetah_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 1.0 + seed)
     stuck = claims(tmp_path / "stuck", tmp_path / "out1")
     assert row(stuck, "Suite DBC reaches the published pixel range")["verdict"] == "not reproduced"
     for text in (plls, "PL-LS with DBC learns faster than DBC"):
@@ -223,10 +223,31 @@ def test_a_comparison_with_a_baseline_that_fails_its_check_is_not_made(tmp_path:
         assert "its own reading: reproduced, Holm-adjusted p = 0.016 over 2 primary comparisons" in gated["reason"]
     assert "1 not made: baseline fails its check" not in (tmp_path / "out1" / "tables" / "claims.md").read_text()
     assert "2 not made: baseline fails its check" in (tmp_path / "out1" / "tables" / "claims.md").read_text()
-    arm(tmp_path / "learns", "cheetah_plls_dbc", 5, [0, 12_500, 25_000], lambda seed, i: 400.0 + seed)
-    arm(tmp_path / "learns", "cheetah_dbc", 5, [0, 12_500, 25_000], lambda seed, i: 250.0 + 10.0 * seed)
+    arm(tmp_path / "learns", "cheetah_plls_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 400.0 + seed)
+    arm(tmp_path / "learns", "cheetah_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 250.0 + 10.0 * seed)
     learns = claims(tmp_path / "learns", tmp_path / "out2")
     assert row(learns, plls)["verdict"] == "reproduced" and "baseline check" not in row(learns, plls)["reason"]
+
+
+def test_a_pixel_pipeline_that_fails_its_check_leaves_dbc_and_fig21_unjudged(tmp_path: Path) -> None:
+    """Fig. 21 requires DBC's check, which requires the pixel-SAC row (decisions D27): with pixel SAC far
+    below CURL's 182 a DBC that reaches the published range is not judged, nor is Fig. 21; with pixel
+    SAC above it both are."""
+    plls, dbc, pixel = ("PL-LS with DBC obtains higher returns than DBC", "Suite DBC reaches the published pixel range",
+                        "Suite pixel SAC reaches CURL's Pixel SAC")
+    for name, pixel_return in (("broken", 5.0), ("works", 250.0)):
+        runs = tmp_path / name
+        arm(runs, "cheetah_plls_dbc", 3, [0, 25_000, 50_000], lambda seed, i: 300.0 + i / 100 + seed)
+        arm(runs, "cheetah_dbc", 3, [0, 25_000, 50_000], lambda seed, i: i / 100 + 10.0 * seed)
+        arm(runs, "cheetah_sac_pixel", 3, [0, 12_500, 25_000], lambda seed, i, r=pixel_return: r + seed)
+        table = claims(runs, tmp_path / f"out_{name}")
+        verdicts = [row(table, text)["verdict"] for text in (pixel, dbc, plls)]
+        if name == "broken":
+            assert verdicts == ["not reproduced", "not made: baseline fails its check", "not made: baseline fails its check"]
+            assert row(table, dbc)["reason"].startswith(f"its baseline check '{pixel}")
+            assert "its own reading: reproduced" in row(table, dbc)["reason"]
+        else:
+            assert verdicts == ["reproduced", "reproduced", "reproduced"]
 
 
 def test_a_baseline_check_not_yet_judged_is_noted_on_the_comparisons_that_require_it(tmp_path: Path) -> None:

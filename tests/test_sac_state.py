@@ -34,9 +34,10 @@ def state_batch(n: int = 8) -> Batch:
 
 def test_the_preset_is_dbcs_sac_on_states(runs_dir: Path) -> None:
     sac, dbc = (compose_preset(p, runs_dir, "budget=quick") for p in ("cheetah_sac_state", "cheetah_dbc"))
-    # no action repeat: the published state-SAC protocol (DrQ's author in denisyarats/drq issue #14), unlike DBC's 4
+    # no action repeat: the published state-SAC protocol (DrQ's author in denisyarats/drq issue #14), unlike
+    # DBC's launcher's 2 (docs/decisions.md#d27)
     assert (sac.runner, sac.algo.dbc.encoder, sac.env.pixels, sac.env.action_repeat) == ("dbc", "identity", False, 1)
-    assert dbc.env.action_repeat == 4
+    assert dbc.env.action_repeat == 2
     assert dataclass_fields(sac.algo.dbc, "encoder") == dataclass_fields(dbc.algo.dbc, "encoder"), \
         "every SAC setting is DBC's"
     budget = sac.budget

@@ -115,16 +115,17 @@ def test_a_runner_that_runs_to_its_end_first_stops_at_its_end(runs_dir: Path) ->
 
 
 def test_a_dbc_trial_resuming_before_its_burst_first_stops_after_it(runs_dir: Path) -> None:
-    """Stop 42's seed 2 resumed at agent step 1000 = init_steps: its first interval holds the burst
-    of 1000 updates, 1000 of its 24,000 iterations' learning, on top of one interval's share.
-    A fresh trial's first interval (an episode of random acting) does not hold it."""
+    """A trial resumed at agent step 1000 = init_steps (as stop 42's seed 2 was): its first interval
+    holds the burst of 1000 updates, 1000 of its 49,000 iterations' learning left (50,000 agent steps
+    at the launcher's action repeat 2), on top of one interval's share. A fresh trial's first interval
+    (an episode of random acting, 500 agent steps) does not hold it."""
     from plls_bench.plan import _burst_share
     from plls_bench.records.layout import PARTIAL_DIR, PARTIAL_MARKER
     from plls_bench.runs import config_hash
 
     cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
-    assert [_burst_share(cfg, at) for at in (0, 750, 1001)] == [0.0, 0.0, 0.0]
-    assert _burst_share(cfg, 1000) == pytest.approx(1000 / 24000) and _burst_share(cfg, 751) > 0
+    assert [_burst_share(cfg, at) for at in (0, 500, 1001)] == [0.0, 0.0, 0.0]
+    assert _burst_share(cfg, 1000) == pytest.approx(1000 / 49000) and _burst_share(cfg, 501) > 0
     assert _burst_share(compose_preset("mountaincar_ppo", runs_dir, "budget=quick"), 0) == 0.0
     marker = runs_dir.parent / "records" / PARTIAL_DIR / "cheetah_dbc" / "default" / "seed=0" / PARTIAL_MARKER
     marker.parent.mkdir(parents=True)
@@ -133,6 +134,6 @@ def test_a_dbc_trial_resuming_before_its_burst_first_stops_after_it(runs_dir: Pa
     plan = plan_profile("quick", str(runs_dir), only=["cheetah_dbc"], rates=rates)[0]
     resumed, fresh = plan.trials[0], plan.trials[1]
     assert resumed.resumes_at == 1000 and resumed.resumes_from == "partial record" and fresh.resumes_at == 0
-    share = 1 / resumed.checkpoints + 1000 / 24000
+    share = 1 / resumed.checkpoints + 1000 / 49000
     assert plan.first_stop_seconds[0] == pytest.approx(plan.trial_seconds[0] * share)
     assert plan.first_stop_seconds[1] == pytest.approx(plan.trial_seconds[1] / fresh.checkpoints)

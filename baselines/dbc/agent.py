@@ -5,6 +5,8 @@ the critic's encoder), then the encoder with the bisimulation, transition and re
 (every ``actor_update_freq`` steps) actor and temperature, then (every
 ``critic_target_update_freq`` steps) the soft target update. The actor shares the critic's conv
 trunk but never trains it; its own Linear + LayerNorm head is trained by the actor loss.
+With ``encoder=critic`` (pixel SAC, the reference's agent/baseline_agent.py with ``--decoder_type
+identity``) the same encoder is trained by the critic alone: no representation step, no models.
 """
 from __future__ import annotations
 
@@ -51,10 +53,12 @@ class DBCAgent:
     def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: Hyperparameters,
                  device: torch.device | str = "cpu", precision: str = "fp32") -> None:
         self.cfg, self.device = cfg, torch.device(device)
-        # bisim: DBC's learned encoder and its losses; identity: state SAC (no representation)
+        # bisim: DBC's learned encoder and its losses; critic: the same encoder trained by the critic
+        # alone (pixel SAC, the reference's --agent baseline); identity: state SAC (no encoder)
         self.learns_representation = cfg.encoder == "bisim"
+        self.has_encoder = cfg.encoder != "identity"
         encoder: Callable[[], nn.Module] = partial(IdentityEncoder, obs_shape)
-        if self.learns_representation:
+        if self.has_encoder:
             trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim, precision)
             # the actor shares the critic's trunk (the reference ties the conv weights)
             encoder = partial(Encoder, trunk, cfg.encoder_feature_dim)
@@ -162,8 +166,12 @@ class DBCAgent:
         alpha_loss = (self.alpha * (-log_pi - self.target_entropy).detach()).mean()
         self._step("alpha", alpha_loss)
         entropy = 0.5 * log_std.shape[1] * (1.0 + math.log(2 * math.pi)) + log_std.sum(dim=-1)
-        return {"loss/actor": actor_loss.item(), "loss/alpha": alpha_loss.item(),
-                "train/alpha": self.alpha.item(), "train/entropy": entropy.mean().item()}
+        metrics = {"loss/actor": actor_loss.item(), "loss/alpha": alpha_loss.item(),
+                   "train/alpha": self.alpha.item(), "train/entropy": entropy.mean().item()}
+        if self.has_encoder and not self.learns_representation:  # pixel SAC: DBC logs its own spread
+            with torch.no_grad():  # the critic's latent of this batch, as DBC's after its critic step
+                metrics["train/latent_batch_std"] = latent_batch_std(self.critic.encoder.head(features))
+        return metrics
 
     def _step(self, names: str | tuple[str, ...], loss: torch.Tensor) -> None:
         """Zero the named optimisers' gradients, backpropagate ``loss`` and step them."""

@@ -100,7 +100,7 @@ class PPOConfig(Validated):
 
 
 TRANSITION_MODELS = ("deterministic", "probabilistic")
-DBC_ENCODERS = ("bisim", "identity")
+DBC_ENCODERS = ("bisim", "critic", "identity")
 
 
 @dataclass
@@ -109,7 +109,8 @@ class DBCConfig(Validated):
 
     Values live in ``conf/algo/dbc.yaml`` with the reference flag each comes from
     (facebookresearch/deep_bisim4control, ``train.py`` and the ``run_*.sh`` launchers).
-    ``encoder``: ``bisim`` (DBC) or ``identity`` (state SAC on the env's state vector, no
+    ``encoder``: ``bisim`` (DBC), ``critic`` (pixel SAC: the same encoder trained by the critic
+    alone; ``conf/algo/sac_pixel.yaml``) or ``identity`` (state SAC on the env's state vector, no
     representation losses; ``conf/algo/sac_state.yaml``). Its default keeps records made before
     the key existed loading, and it is left out of the config hash at that value.
     """

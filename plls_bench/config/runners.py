@@ -81,7 +81,7 @@ def validate_dbc(cfg: RunnerConfig) -> None:
     if dbc is not None and dbc.encoder == "identity":
         check(not cfg.env.pixels, "algo.dbc.encoder",
               f"identity passes state vectors to the actor and critic; env {cfg.env.name} has pixels=true "
-              f"(use env.pixels=false, or algo.dbc.encoder=bisim)")
+              f"(use env.pixels=false, or algo.dbc.encoder=bisim or critic)")
     if cfg.env.pixels and dbc is not None:
         sizes = conv_sizes(size, [3] * dbc.num_layers, [2] + [1] * (dbc.num_layers - 1))
         check(min(sizes) >= 1, "env.image_size",

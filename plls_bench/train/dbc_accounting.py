@@ -5,7 +5,8 @@ Modules: ``encoder`` (the critic's conv trunk, shared with the actor, and its Li
 LayerNorm), ``actor`` (its own Linear + LayerNorm head and MLP, from the trunk's features),
 ``critic`` (twin Q on ``[z, a]``), ``critic_target`` (Polyak-averaged: not trainable),
 ``transition_model`` (on ``[z, a]``), ``reward_decoder`` and, for PL-LS + DBC, the frozen
-``V_a.decoder``. State SAC (``algo.dbc.encoder=identity``) has only actor, critic and target.
+``V_a.decoder``. State SAC (``algo.dbc.encoder=identity``) has only actor, critic and target; pixel
+SAC (``algo.dbc.encoder=critic``) has those and the encoder.
 Modules whose forward takes several tensors are summarised through a one-input adapter that runs
 the same layers in the same order.
 """
@@ -57,7 +58,7 @@ def modules_and_examples(agent: DBCAgent, obs_shape: tuple[int, ...],
     if transition is not None and agent.reward_decoder is not None:
         modules["transition_model"] = _OneInput(lambda za: transition(*split(za)), model=transition)
         modules["reward_decoder"] = agent.reward_decoder
-    else:  # state SAC: no encoder (the identity) and no models
+    if not agent.has_encoder:  # state SAC: no encoder (the identity); pixel SAC keeps it, without models
         del modules["encoder"]
     return modules, {k: examples[k].to(agent.device) for k in modules}
 

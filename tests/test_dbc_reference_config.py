@@ -1,0 +1,69 @@
+"""algo=dbc is one source of the DBC reference (decisions D27): its clean-background launcher as run_all.sh
+runs it for cheetah, action repeat included; the earlier mix (algo=dbc_mix) keeps the committed records'
+config hashes; env/per_algo/ layers set env keys only."""
+from __future__ import annotations
+
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+import yaml
+
+from plls_bench.composition import CONF_DIR, compose
+from plls_bench.config import EnvConfig
+from plls_bench.files import read_json
+from plls_bench.runs import STATUS_DONE, config_hash
+from tests.conftest import REPO_ROOT, compose_preset
+
+RECORDS = REPO_ROOT / "results" / "records"
+PRESETS = ("cheetah_dbc", "cheetah_plls_dbc")
+
+
+def recorded_trials() -> list[tuple[str, Path]]:
+    """The committed done records of the DBC presets' default variant, as (preset, record dir)."""
+    found = []
+    for preset in PRESETS:
+        for record in sorted((RECORDS / preset / "default").glob("seed=*")):
+            if (read_json(record / "status.json") or {}).get("state") == STATUS_DONE:
+                found.append((preset, record))
+    return found
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_the_default_runs_at_the_launchers_action_repeat(preset: str, runs_dir: Path) -> None:
+    """run_all.sh runs cheetah at action repeat 2; the README command, and so dbc_readme and the mix, at 4."""
+    repeats = {algo: compose_preset(preset, runs_dir, *([f"algo={algo}"] if algo else [])).env.action_repeat
+               for algo in ("", "dbc_mix", "dbc_readme")}
+    assert repeats == {"": 2, "dbc_mix": 4, "dbc_readme": 4}
+    assert compose_preset(preset, runs_dir, "env.action_repeat=3").env.action_repeat == 3, "the command line wins"
+
+
+def test_the_mix_differs_from_the_default_in_the_action_repeat_alone(runs_dir: Path) -> None:
+    default, mix = (compose_preset("cheetah_dbc", runs_dir, *extra) for extra in ((), ("algo=dbc_mix",)))
+    assert mix.algo == default.algo and mix.budget == default.budget
+    assert {f.name for f in fields(EnvConfig) if getattr(mix.env, f.name) != getattr(default.env, f.name)} == \
+        {"action_repeat"}
+
+
+def test_the_mix_keeps_the_hash_of_every_committed_dbc_record() -> None:
+    """Each done record of cheetah_dbc / cheetah_plls_dbc composes back, with algo=dbc_mix at its own budget
+    and seed, to the hash it was recorded with; under the new default it no longer does (it is rerun)."""
+    trials = recorded_trials()
+    assert trials, f"no done records under {RECORDS}/cheetah_dbc/default"
+    for preset, record in trials:
+        written = read_json(record / "config.json")
+        budget, seed = written["config"]["budget"]["name"], written["config"]["seed"]
+        base = [f"+experiment={preset}", f"budget={budget}", f"seed={seed}"]
+        assert config_hash(compose([*base, "algo=dbc_mix"])) == written["config_hash"], record
+        assert config_hash(compose(base)) != written["config_hash"], record
+
+
+def test_env_per_algo_layers_set_only_env_keys() -> None:
+    """An env/per_algo file is merged into the env node: it may hold env keys and nothing else."""
+    allowed = {f.name for f in fields(EnvConfig)}
+    paths = sorted((CONF_DIR / "env" / "per_algo").glob("*.yaml"))
+    assert paths
+    for path in paths:
+        text = path.read_text()
+        keys = set(yaml.safe_load(text) or {})
+        assert "@package" not in text and keys and keys <= allowed, f"conf/env/per_algo/{path.name}: {sorted(keys)}"
