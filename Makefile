@@ -2,7 +2,7 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup setup-dev test docs smoke bench
+.PHONY: setup setup-dev lint test test-fast docs smoke bench
 
 setup:
 	./reproduce.sh --setup-only
@@ -10,8 +10,14 @@ setup:
 setup-dev:  ## .venv with the dev extra (pytest, mkdocs)
 	./reproduce.sh --setup-only --dev
 
+lint: setup-dev  ## ruff over the whole tree (rules and why: pyproject.toml, [tool.ruff])
+	$(PY) -m ruff check .
+
 test: setup-dev  ## the test suite CI runs (2 cores, no GPU)
 	$(PY) -m pytest
+
+test-fast: setup-dev  ## the tests not marked slow (minutes instead of a quarter hour)
+	$(PY) -m pytest -m "not slow"
 
 docs: setup-dev  ## the docs site from docs/ and results/ into site/, strict: a broken link or page fails
 	$(PY) -m mkdocs build --strict --site-dir site

@@ -3,7 +3,8 @@
     nice -n 10 .venv/bin/python bench/dbc_throughput.py                      # cheetah_dbc, budget=quick
     nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 2 --updates 20
     nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 --layouts contiguous channels_last
-    nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 --layouts contiguous channels_last --precisions fp32 bf16
+    nice -n 10 .venv/bin/python bench/dbc_throughput.py --threads 1 --layouts contiguous channels_last \
+        --precisions fp32 bf16
 
 The env and agent are built as the ``dbc`` runner builds them (``budget=quick``: the reference
 launcher's batch size 128 and hidden size 1024), from a V_a artifact that must already exist
@@ -111,7 +112,8 @@ def main(argv: list[str] | None = None) -> int:
                                 [f"precision={precision}"], layout=layout)
                     base = m["cpu_s"] if (layout, precision) == ("contiguous", "fp32") else base
                     ratio = f"{base / m['cpu_s']:.2f}x" if base else "—"
-                    rows.append(f"| `{preset}` | {threads} | {layout} | {precision} | {m['env_sps']:.1f} | {m['batch']} | "
+                    rows.append(f"| `{preset}` | {threads} | {layout} | {precision} | {m['env_sps']:.1f} | "
+                                f"{m['batch']} | "
                                 f"{m['update_s']:.2f} | {m['cpu_s']:.2f} | {ratio} | **{m['ups']:.2f}** | "
                                 f"{m['bytes']:,} / {m['reference_bytes']:,} |")
                     print(rows[-1], flush=True)

@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(child(args.child, args.preset, args.budget, args.steps, args.rounds, args.runs)))
         return 0
     command = announce("malloc_retain.py", argv)
-    results: dict[str, dict[str, list[float]]] = {s: {"cpu_s": [], "faults": [], "peak_rss_mib": []} for s in args.settings}
+    results: dict[str, dict[str, list[float]]] = {s: {"cpu_s": [], "faults": [], "peak_rss_mib": []}
+                                                  for s in args.settings}
     for repeat in range(args.repeats):
         for setting in args.settings:
             for key, values in run_child(setting, args).items():

@@ -108,7 +108,8 @@ def study_rate(cfg: Config, runs_dir: str, clock: str) -> float:
         return 1.0 / (CLOCKS[clock]() - start)
 
 
-def _collect(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[str, ...]) -> list[tuple[float, str]]:
+def _collect(cfg: Config, keys: list[str], args: argparse.Namespace,
+             engine: tuple[str, ...]) -> list[tuple[float, str]]:
     return [(collect_rate(cfg, args.collect_steps, args.clock), rate_unit("env steps", args.clock))]
 
 

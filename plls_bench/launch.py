@@ -205,7 +205,9 @@ def _run_queued(plans: list[PresetPlan], profile: str, runs_dir: str, overrides:
     def launch_of(i: int, trial: Trial) -> Launch:
         def argv() -> list[str] | None:
             limit = _limit_at_start(time_limit_min, deadline, start_minutes(plans[i], trial, launcher))
-            return None if limit is None else multirun_command(plans[i], profile, runs_dir, overrides, [trial.seed], limit)
+            if limit is None:
+                return None
+            return multirun_command(plans[i], profile, runs_dir, overrides, [trial.seed], limit)
         return argv
 
     start = time.perf_counter()

@@ -43,7 +43,8 @@ def write_manifest(repo: Path = REPO_ROOT) -> str:
         return out
     changed = git("status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS).strip()
     if changed:
-        raise ManifestError(f"uncommitted changes to the code: {changed.splitlines()[0].strip()} ...: commit them first")
+        raise ManifestError(f"uncommitted changes to the code: {changed.splitlines()[0].strip()} ...: "
+                            "commit them first")
     rows = [line.split("\t", 1) for line in git("ls-tree", "-r", "HEAD", "--", *CODE_PATHS).splitlines()]
     files = [f"{meta.split()[2]}\t{path}" for meta, path in rows if meta.split()[1] == "blob"]
     return "\n".join([HEADER + git("rev-parse", "HEAD"), *files]) + "\n"

@@ -47,7 +47,8 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
     """The plan as a table, with estimated compute from measured throughput, and what a
     ``--stop-after-min`` deadline leaves of it under ``launcher``."""
     width = max([28, *(len(p.label) for p in plans)])
-    rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'recorded':>8s} {'env steps/trial':>15s} {'est. CPU-h':>10s}"]
+    rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'recorded':>8s} {'env steps/trial':>15s} "
+            f"{'est. CPU-h':>10s}"]
     total, unknown = 0.0, set()
     for p in plans:
         est = "n/a" if p.seconds is None else f"{p.seconds / 3600:.2f}"
@@ -59,8 +60,9 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
     for p in plans:  # trials that continue from a checkpoint: only their remainder is costed
         rows += [f"  resumes: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,} "
                  f"(from its {t.resumes_from})" for t in p.pending if t.resumes_from]
-        rows += [f"  behind: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,}; an earlier attempt "
-                 f"reached {t.lost_at:,} (its pending record: metrics only, no checkpoint)" for t in p.pending if t.lost_at]
+        rows += [f"  behind: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,}; "
+                 f"an earlier attempt reached {t.lost_at:,} (its pending record: metrics only, no checkpoint)"
+                 for t in p.pending if t.lost_at]
     pending, recorded = sum(len(p.pending) for p in plans), sum(p.recorded for p in plans)
     rerun = "run again (--rerun-recorded)" if plans and not plans[0].count_records else "counted as done"
     rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "
@@ -96,13 +98,14 @@ def _filmstrip_presets() -> dict[str, FilmstripConfig]:
 
 def film_policies(plans: list[PresetPlan]) -> list[str]:
     """Film the first done trial that holds a policy (:func:`_film_target`) of each filmed preset
-    (``budget.eval_max_steps`` caps the episode, as for its test episodes); a filmstrip already made of the same run with
-    the same settings (its done marker, :class:`plls_bench.runs.RunOutput`) is not redone.
+    (``budget.eval_max_steps`` caps the episode, as for its test episodes); a filmstrip already made of the same
+    run with the same settings (its done marker, :class:`plls_bench.runs.RunOutput`) is not redone.
     Returns the presets whose filmstrip failed."""
     failed, filmed = [], _filmstrip_presets()
     for plan in plans:
         strip = filmed.get(plan.experiment)
-        if strip is None or not plan.trials or variant_overrides(plan.overrides):  # a variant (a sweep value) is not filmed
+        # a variant (a sweep value) is not filmed
+        if strip is None or not plan.trials or variant_overrides(plan.overrides):
             continue
         if not runner_spec(plan.runner).films:  # a filmstrip config that lists a preset with no policy
             print(f"[reproduce] {plan.experiment}: listed in conf/filmstrip/{plan.env}.yaml, but runner "

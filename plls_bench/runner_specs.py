@@ -160,7 +160,8 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               load_resume_files=_dbc_checkpoint, time_limited=True,  # pixel DBC's and state SAC's are over MAX_PARTIAL_BYTES
+               # pixel DBC's and state SAC's checkpoints are over MAX_PARTIAL_BYTES
+               load_resume_files=_dbc_checkpoint, time_limited=True,
                checkpoints_at="episode", burst=_dbc_burst),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}

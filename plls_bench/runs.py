@@ -9,7 +9,8 @@ A run lives at ``<runs_dir>/<experiment>/<variant>/seed=<k>/`` and holds::
     metrics/<stream>.jsonl one JSON record per line (train, eval, repr_train, ...)
     metrics/*.json        summaries, e.g. :data:`PARAMS_FILE` and :data:`ARCHITECTURE_FILE`
     checkpoints/          whatever the runner needs to resume
-    status.json           written last and atomically: running -> done | stopped (time limit, SIGTERM) | failed (with the error)
+    status.json           written last and atomically: running -> done | stopped (time limit, SIGTERM)
+                          | failed (with the error)
     filmstrip/            a sub-output made after the run (:data:`RUN_OUTPUTS`, :class:`RunOutput`):
                           its files, then done.json with its own config hash
 

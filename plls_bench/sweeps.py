@@ -68,7 +68,8 @@ def load_sweep(name: str) -> Sweep:
         data = OmegaConf.to_container(OmegaConf.load(path))
     except (OSError, OmegaConfBaseException) as err:
         raise ConfigError(f"{path}: unreadable ({err})") from err
-    if not isinstance(data, dict) or not {"preset", "key", "values"} <= set(data) <= {"preset", "key", "values", "trials"}:
+    keys = {"preset", "key", "values"}
+    if not isinstance(data, dict) or not keys <= set(data) <= keys | {"trials"}:
         raise ConfigError(f"{path}: needs the keys preset, key, values (and optionally trials)")
     preset, key, values, trials = data["preset"], data["key"], data["values"], data.get("trials")
     if trials is not None and not (isinstance(trials, int) and not isinstance(trials, bool) and trials >= 1):

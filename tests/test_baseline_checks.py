@@ -58,5 +58,6 @@ def test_a_chain_of_baseline_checks_that_leads_back_is_refused_naming_the_line(t
         writer = csv.DictWriter(file, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    with pytest.raises(ValueError, match=rf"claims.csv line {first + 2}: requires .* leads back to .*a cycle of baseline"):
+    cycle = rf"claims.csv line {first + 2}: requires .* leads back to .*a cycle of baseline"
+    with pytest.raises(ValueError, match=cycle):
         read_claims(paper)

@@ -117,7 +117,8 @@ def test_learns_a_contextual_bandit_from_random_actions(encoder: str, runs_dir: 
         return 1.0 - ((a - np.tanh(ctx @ w)) ** 2).mean(axis=1)
 
     rewards = reward(actions, x).astype(np.float32)
-    agent = DBCAgent((dim,), action_dim, small_cfg(runs_dir, "algo.dbc.encoder_feature_dim=16", "algo.dbc.hidden_dim=64",
+    agent = DBCAgent((dim,), action_dim, small_cfg(runs_dir, "algo.dbc.encoder_feature_dim=16",
+                                                   "algo.dbc.hidden_dim=64",
                                                    "algo.dbc.batch_size=128", f"algo.dbc.encoder={encoder}",
                                                    "env.pixels=false"))
     for step in range(STEPS):

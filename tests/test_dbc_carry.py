@@ -38,7 +38,8 @@ def all_budgets(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_an_interrupted_state_sac_trial_continues_from_its_partial_record_in_a_fresh_runs_dir(
         tmp_path: Path, all_budgets: None, one_torch_thread: None, monkeypatch: pytest.MonkeyPatch,
         caplog: pytest.LogCaptureFixture) -> None:
-    dirs = {name: run_dir_path(tmp_path / name / "results" / "runs", *KEY.parts[:2], 0) for name in ("local", "carried")}
+    dirs = {name: run_dir_path(tmp_path / name / "results" / "runs", *KEY.parts[:2], 0)
+            for name in ("local", "carried")}
     cfgs = {name: compose_preset("cheetah_sac_state", d.parents[2], *SMALL) for name, d in dirs.items()}
     for name in dirs:  # the first evaluation (200 env steps) is the first checkpoint
         interrupted(cfgs[name], dirs[name], dbc.DBCTrainer, 200, monkeypatch)
@@ -52,7 +53,8 @@ def test_an_interrupted_state_sac_trial_continues_from_its_partial_record_in_a_f
     assert done.partial == [str(KEY)] and not done.skipped
     marker = read_json(partial / "partial.json")
     assert marker["iteration"] == 200 and marker["commit"] == "checkpoints/dbc.pt"
-    assert not (partial / "checkpoints" / "dbc.pt").exists() and len(marker["split"]["checkpoints/dbc.pt"]["parts"]) == 3
+    assert not (partial / "checkpoints" / "dbc.pt").exists()
+    assert len(marker["split"]["checkpoints/dbc.pt"]["parts"]) == 3
     assert any(f.startswith("checkpoints/replay/chunk_") for f in marker["files"]), "the replay travels too"
 
     shutil.rmtree(runs)
@@ -86,7 +88,8 @@ def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path,
     done = export_records(runs)
     [reason] = done.skipped
     assert reason.startswith("cheetah_dbc/default/seed=0: status running (0.1 MiB to carry, over the 0 MiB")
-    assert done.pending == ["cheetah_dbc/default/seed=0"], "its metrics go to a pending record (test_pending_records.py)"
+    assert done.pending == ["cheetah_dbc/default/seed=0"], \
+        "its metrics go to a pending record (test_pending_records.py)"
     assert not (tmp_path / "results" / "records" / PARTIAL_DIR).exists()
 
 
@@ -122,9 +125,11 @@ def _committing(run: Run, commits: list[str]) -> ResumeFiles:
             run.log("train", {"iteration": end - 1})
             run.write_bytes(f"checkpoints/replay/chunk_{end - 9:012d}_{end:012d}.npz", b"n" * 1000)
         if change:
-            run.write_bytes("checkpoints/dbc.pt", change.encode() * 100 + (run.path / "checkpoints" / "dbc.pt").read_bytes())
+            old = (run.path / "checkpoints" / "dbc.pt").read_bytes()
+            run.write_bytes("checkpoints/dbc.pt", change.encode() * 100 + old)
         if change == "chunk":
-            run.write_json("checkpoints/progress.json", {"iteration": end - 1, "agent_steps": end - 1, "replay_written": end})
+            run.write_json("checkpoints/progress.json",
+                           {"iteration": end - 1, "agent_steps": end - 1, "replay_written": end})
         return dbc_state.committed_files(run_path)
     return listing
 
@@ -150,7 +155,8 @@ def test_a_checkpoint_committed_while_it_is_read_is_read_again(tmp_path: Path, c
 def test_a_checkpoint_that_keeps_changing_is_not_carried(tmp_path: Path) -> None:
     run = _checkpoint(make_run(tmp_path / "runs", "cheetah_dbc", 0)[0], 2**12)
     reason = checkpoint_snapshot(run.path, _committing(run, ["", "pt"] * SNAPSHOT_TRIES), 2**20)
-    assert reason == f"its checkpoint changed during each of {SNAPSHOT_TRIES} reads (a run still training); export after it stops"
+    assert reason == (f"its checkpoint changed during each of {SNAPSHOT_TRIES} reads (a run still training); "
+                      "export after it stops")
 
 
 @pytest.mark.slow

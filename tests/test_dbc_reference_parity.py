@@ -19,8 +19,9 @@ OBS = (9, 36, 36)  # small frames: the conv trunk sizes its Linear layer from th
 def batches(n: int, size: int = 16) -> list[Batch]:
     g = torch.Generator().manual_seed(0)
     frames = lambda: torch.randint(0, 256, (size, *OBS), generator=g, dtype=torch.uint8)  # noqa: E731
-    return [Batch(obs=frames(), action=torch.rand(size, 6, generator=g) * 2 - 1, reward=torch.rand(size, 1, generator=g),
-                  next_obs=frames(), not_done=torch.ones(size, 1)) for _ in range(n)]
+    return [Batch(obs=frames(), action=torch.rand(size, 6, generator=g) * 2 - 1,
+                  reward=torch.rand(size, 1, generator=g), next_obs=frames(), not_done=torch.ones(size, 1))
+            for _ in range(n)]
 
 
 def sides(runs_dir: Path, *other_overrides: str) -> tuple[parity.Side, parity.Side]:

@@ -39,7 +39,7 @@ def test_episode_boundaries_follow_sb3_semantics() -> None:
     raw_obs, _ = raw.reset()
     assert np.array_equal(first, raw_obs.transpose(0, 3, 1, 2))
     t = 0
-    for episode in range(3):
+    for _episode in range(3):
         for k in range(HORIZON):
             obs, rewards, terminated, truncated, _ = raw.step(actions[t], np.arange(n_envs))
             obs_a, rewards_a, dones_a, infos_a = got[t]
@@ -68,7 +68,7 @@ def test_vec_env_check() -> None:
     assert obs.shape == (3, 3, 96, 96) and obs.dtype == np.uint8
     assert all(venv.observation_space.contains(o) for o in obs)
     total = np.zeros(3)
-    for t in range(HORIZON):
+    for _ in range(HORIZON):
         obs, rewards, dones, infos = venv.step(np.full((3, 3), 5.0))  # out of the box: clipped
         total += rewards
         assert obs.dtype == np.uint8 and rewards.dtype == np.float32 and dones.dtype == bool

@@ -161,7 +161,8 @@ def test_the_local_launcher_s_estimates_count_a_learner_s_torch_threads(
     assert launch.estimated_wall_seconds([ppo], jobs=1, launcher="local") == pytest.approx(10.0)
     collect = dataclasses.replace(dbc, runner="collect")
     assert launch.estimated_wall_seconds([collect], jobs=1, launcher="local") == pytest.approx(10.0)
-    assert "about 0.0 h wall with 1 parallel job(s) of up to 2 thread(s) each" in format_plan([dbc], 1, launcher="local")
+    wall = "about 0.0 h wall with 1 parallel job(s) of up to 2 thread(s) each"
+    assert wall in format_plan([dbc], 1, launcher="local")
     # its first checkpoint too: 600 CPU-seconds away are 5 minutes on 2 threads, 10 on one
     dbc.first_stop_seconds = {0: 600.0}
     assert launch.start_minutes(dbc, dbc.trials[0], "local") == pytest.approx(5.0)
@@ -170,8 +171,8 @@ def test_the_local_launcher_s_estimates_count_a_learner_s_torch_threads(
     assert "1 do not start" in launch.deadline_outlook([dbc], 1, 6, launcher="joblib")[0]
     started: dict[str, bool] = {}  # and so does the queue itself, 6 minutes before its deadline
     for name in ("local", "joblib"):
-        monkeypatch.setattr(launch, "run_queue", lambda commands, jobs: {key: started.setdefault(name, go() is not None)
-                                                                         for key, go in commands})
+        monkeypatch.setattr(launch, "run_queue", lambda commands, jobs, name=name: {
+            key: started.setdefault(name, go() is not None) for key, go in commands})
         launch.run_plans([dbc], "quick", str(tmp_path), [], stop_after_min=6, launcher=name)
     assert started == {"local": True, "joblib": False}
 

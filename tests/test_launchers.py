@@ -15,7 +15,8 @@ from tests.conftest import run_cli, start_cli
 
 
 def statuses(runs: Path) -> list[str]:
-    return [json.loads(p.read_text())["state"] for p in sorted(runs.glob("mountaincar_data/default/seed=*/status.json"))]
+    paths = sorted(runs.glob("mountaincar_data/default/seed=*/status.json"))
+    return [json.loads(p.read_text())["state"] for p in paths]
 
 
 LAUNCHERS = {

@@ -49,7 +49,8 @@ def test_the_option_errors_name_the_flag_to_use(capsys: pytest.CaptureFixture[st
 def test_plan_puts_each_variant_beside_the_presets_own_runs(tmp_path: Path) -> None:
     plans = plan_profile("smoke", str(tmp_path), only=[PRESET], rates={},
                          variants=override_variants(["repr.action.latent_dim=4,8"]))
-    assert [p.label for p in plans] == [PRESET, f"{PRESET} repr.action.latent_dim=4", f"{PRESET} repr.action.latent_dim=8"]
+    assert [p.label for p in plans] == [PRESET, f"{PRESET} repr.action.latent_dim=4",
+                                        f"{PRESET} repr.action.latent_dim=8"]
     dirs = [p.trials[0].run_dir.relative_to(tmp_path).as_posix() for p in plans]
     assert dirs == [f"{PRESET}/default/seed=0", f"{PRESET}/repr.action.latent_dim=4/seed=0",
                     f"{PRESET}/repr.action.latent_dim=8/seed=0"]

@@ -52,7 +52,8 @@ def test_a_bf16_plan_uses_bf16_rates_and_never_falls_back_to_fp32(runs_dir: Path
                         count_records=False)[0]
     assert bf16.seconds is None, "no bf16 rate: the estimate must say so, not use the fp32 one"
     assert bf16.missing_rates == [f"{EVAL}@envpool@bf16", f"{TRAIN}@envpool@bf16"]
-    assert all(t.cfg.precision == "bf16" and t.run_dir.parent.name == "precision=bf16,env.backend=envpool" for t in bf16.trials)
+    assert all(t.cfg.precision == "bf16" and t.run_dir.parent.name == "precision=bf16,env.backend=envpool"
+               for t in bf16.trials)
     # half the fp32 rates: twice the fp32 estimate
     both = {**fp32_rates, **{f"{key}@bf16": rate / 2 for key, rate in fp32_rates.items()}}
     costed = plan_profile("quick", str(runs_dir), only=quick, rates=both, overrides=("precision=bf16",),

@@ -57,7 +57,8 @@ def test_arms_at_different_budgets_are_judged_at_the_common_evaluation(tmp_path:
                                      "Welch t = -60.00, p = 0.0079 (permutation;")
     # Holm over the tested primary comparisons (this row and the variance row, p = 1): 2 x 2 / 252
     assert beats["p_adjusted"] == pytest.approx(2 * 2 / 252)
-    assert beats["reason"] == "Holm-adjusted p = 0.016 over 2 primary comparisons <= 0.05, against the claim's direction"
+    assert beats["reason"] == ("Holm-adjusted p = 0.016 over 2 primary comparisons <= 0.05, "
+                               "against the claim's direction")
     variance = row(table, "PPO has the larger variance")  # judged on the same evaluations
     assert variance["budget"] == beats["budget"]
     stats = pd.read_csv(render_stats(tmp_path)).query("figure == 'fig18'").set_index("method")  # the stats table too

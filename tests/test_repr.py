@@ -201,7 +201,8 @@ def test_a_checkpoint_of_other_shapes_is_refused_naming_the_tensor(runs_dir: Pat
     path = ensure_artifact(cfg, "action").path / "model.pt"
     wider = new_model(compose_preset("mountaincar_va", runs_dir, "repr.action.latent_dim=8"), "action", 1)
     before = state_of(wider)
-    with pytest.raises(CheckpointMismatch, match=r"encoder\.mu\.weight: checkpoint \[3, 8\], repr.action gives \[8, 8\]"):
+    mismatch = r"encoder\.mu\.weight: checkpoint \[3, 8\], repr.action gives \[8, 8\]"
+    with pytest.raises(CheckpointMismatch, match=mismatch):
         load_weights(path, wider, "repr.action")
     assert all(torch.equal(wider.state_dict()[k], v) for k, v in before.items()), "nothing half-loaded"
     # a stored artifact whose checkpoint disagrees with the code's architecture (checksum intact)

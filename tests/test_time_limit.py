@@ -105,8 +105,9 @@ def test_time_limit_changes_neither_hash_nor_run_dir(runs_dir: Path) -> None:
     plain = compose_preset("mountaincar_ppo", runs_dir)
     limited = compose_preset("mountaincar_ppo", runs_dir, "time_limit_min=30")
     assert limited.time_limit_min == 30 and config_hash(limited) == config_hash(plain)
-    dirs = [[t.run_dir for p in plan_profile("smoke", str(runs_dir), ["mountaincar_ppo"], overrides=o) for t in p.trials]
-            for o in ((), ("time_limit_min=30",))]
+    plans = [plan_profile("smoke", str(runs_dir), ["mountaincar_ppo"], overrides=o)
+             for o in ((), ("time_limit_min=30",))]
+    dirs = [[t.run_dir for p in plan for t in p.trials] for plan in plans]
     assert dirs[0] == dirs[1] and all("time_limit" not in str(d.relative_to(runs_dir)) for d in dirs[1])
 
 

@@ -65,7 +65,8 @@ def trunks(runs_dir: Path) -> dict[str, tuple[nn.Module, Forward]]:
         "paper_cnn": (ppo_policy(runs_dir).features_extractor, lambda m, t: m(unit.to(t))),
         "V_s.encoder": (state_vae(runs_dir), lambda m, t: torch.cat(m.encode(unit.to(t)), 1)),
         "V_s.decoder": (state_vae(runs_dir), lambda m, t: m.decode(z.to(t))),
-        "dbc.encoder": (dbc_trunk(runs_dir), lambda m, t: m.convs(stacked.to(t)).flatten(1)),  # ConvTrunk after its / 255
+        # ConvTrunk after its / 255
+        "dbc.encoder": (dbc_trunk(runs_dir), lambda m, t: m.convs(stacked.to(t)).flatten(1)),
     }
 
 

@@ -152,13 +152,16 @@ def markdown(report: dict[str, Any]) -> str:
              f"(`env.data_policy`), episode seeds from {VALIDATION_SEED}.", "",
              "## 1. Random-policy returns and episode lengths (mean [95% CI])", "",
              "| | gymnasium | envpool | two-sample tests |", "|---|---|---|---|",
-             f"| return | {_ci(s['returns']['gymnasium'])} | {_ci(s['returns']['envpool'])} | {_test(s['returns_test'])} |",
-             f"| length | {_ci(s['lengths']['gymnasium'])} | {_ci(s['lengths']['envpool'])} | {_test(s['lengths_test'])} |",
+             f"| return | {_ci(s['returns']['gymnasium'])} | {_ci(s['returns']['envpool'])} | "
+             f"{_test(s['returns_test'])} |",
+             f"| length | {_ci(s['lengths']['gymnasium'])} | {_ci(s['lengths']['envpool'])} | "
+             f"{_test(s['lengths_test'])} |",
              "", "## 2. Frame statistics per channel (R, G, B in [0, 1])", "",
              "| | mean R, G, B | std R, G, B |", "|---|---|---|"]
     for b in BACKENDS:
         c = s["channels"][b]
-        lines.append(f"| {b} | {', '.join(f'{v:.4f}' for v in c['mean'])} | {', '.join(f'{v:.4f}' for v in c['std'])} |")
+        means, stds = (", ".join(f"{v:.4f}" for v in c[k]) for k in ("mean", "std"))
+        lines.append(f"| {b} | {means} | {stds} |")
     lines += ["", "## 3. V_s reconstruction across backends", ""]
     rec = report.get("reconstruction")
     if isinstance(rec, dict):
@@ -172,7 +175,8 @@ def markdown(report: dict[str, Any]) -> str:
     pol = report.get("policy")
     if isinstance(pol, dict):
         lines += [f"Run `{pol['run']}`, deterministic actions, {len(pol['gymnasium'])} tracks each: "
-                  f"gymnasium {_ci(mean_ci(np.array(pol['gymnasium'])))}, envpool {_ci(mean_ci(np.array(pol['envpool'])))}; "
+                  f"gymnasium {_ci(mean_ci(np.array(pol['gymnasium'])))}, "
+                  f"envpool {_ci(mean_ci(np.array(pol['envpool'])))}; "
                   f"{_test(pol['tests'])}."]
     else:
         lines.append(f"Not measured: {pol}")

@@ -72,7 +72,8 @@ def suite_side(agent: DBCAgent) -> Side:
 def import_reference(path: Path) -> type:
     """The reference's ``BisimAgent`` class, imported from the checkout at ``path``."""
     if not (path / "agent" / "bisim_agent.py").is_file():
-        raise SystemExit(f"--reference: {path} has no agent/bisim_agent.py (a facebookresearch/deep_bisim4control checkout)")
+        raise SystemExit(f"--reference: {path} has no agent/bisim_agent.py "
+                         "(a facebookresearch/deep_bisim4control checkout)")
     if "gym" not in sys.modules:  # only utils.FrameStack(gym.Wrapper) needs it, at class definition
         stand_in = types.ModuleType("gym")
         stand_in.Wrapper, stand_in.spaces = object, types.SimpleNamespace(Box=None)  # type: ignore[attr-defined]
@@ -148,7 +149,8 @@ def default_dtype(dtype: torch.dtype) -> Iterator[None]:
         if dtype == torch.float32:
             yield
         else:
-            with mock.patch.object(ConvTrunk, "forward", lambda self, obs: self.convs(obs.to(dtype) / 255.0).flatten(1)):
+            forward = lambda self, obs: self.convs(obs.to(dtype) / 255.0).flatten(1)  # noqa: E731
+            with mock.patch.object(ConvTrunk, "forward", forward):
                 yield
     finally:
         torch.set_default_dtype(before)

@@ -134,8 +134,10 @@ def learner_table(title: str, learner: dict[str, Any]) -> list[str]:
              f"CPU s per run of the update(s), median of {len(cpu['fp32'])}: fp32 {fp32:.1f}, bf16 {bf16:.1f} "
              f"({bf16 / fp32:.1f}x).", "",
              "| measure | same order: d(fp32_k, bf16_k), median [min, max] | different orders: d(fp32_i, fp32_j), "
-             "median [min, max] | update size: d(initial, fp32_k), median | bf16 forward only: d(initial, initial in bf16) "
-             "| fp32 repeat: d(fp32_0, fp32_0) | max same / min different | rule |", "|---|---|---|---|---|---|---|---|"]
+             "median [min, max] | update size: d(initial, fp32_k), median | "
+             "bf16 forward only: d(initial, initial in bf16) "
+             "| fp32 repeat: d(fp32_0, fp32_0) | max same / min different | rule |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, r in result.items():
         lines.append(f"| {name} | {_range(r['same_order'])} | {_range(r['fp32_orders'])} | "
                      f"{np.median(r['update']):.3g} | {r['forward']:.3g} | {r['repeat']:.3g} | "

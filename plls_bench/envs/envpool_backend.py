@@ -74,7 +74,8 @@ class _Layout:
             h, w, c = space.shape
             self.space = gym.spaces.Box(0, 255, (c, h, w), np.uint8)
         else:
-            self.space = gym.spaces.Box(space.low.astype(np.float32), space.high.astype(np.float32), space.shape, np.float32)
+            self.space = gym.spaces.Box(space.low.astype(np.float32), space.high.astype(np.float32), space.shape,
+                                        np.float32)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """``(n, *envpool shape)`` -> ``(n, *self.space.shape)``."""

@@ -1,4 +1,5 @@
-"""``python -m plls_bench.report [--runs results/runs | --records-only] [--records DIR] [--out results] [--only ID ...] [--list]``
+"""``python -m plls_bench.report [--runs results/runs | --records-only] [--records DIR] [--out results]
+[--only ID ...] [--list]``
 
 Regenerates every table and figure of the paper from run directories (see ``registry.py``).
 Exit status: 0 when every id rendered (gaps are reported, not errors), 1 when an id failed to
@@ -36,7 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     sources = parser.add_mutually_exclusive_group()
     sources.add_argument("--no-records", action="store_true", help="read the runs dir only")
     sources.add_argument("--records-only", action="store_true",
-                         help="read the committed records only, not the runs dir: results/ as a fresh clone regenerates it")
+                         help="read the committed records only, not the runs dir: results/ as a fresh clone "
+                         "regenerates it")
     parser.add_argument("--out", default="results", help="where tables/, figures/, index.json and README.md go")
     parser.add_argument("--only", nargs="+", metavar="ID", help="regenerate only these ids (see --list)")
     parser.add_argument("--list", action="store_true", help="print the registry and exit")

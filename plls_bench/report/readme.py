@@ -29,7 +29,7 @@ def _runs_summary(runs_dir: Path | None, records_dir: Path | None = None) -> lis
     updated: list[str] = []  # status.json times (ISO 8601, UTC): the newest is the evidence's date
     roots = [root for root in (runs_dir, records_dir) if root is not None]
     seen: set[Path] = set()  # a run and its record are one run
-    for root, path in ((root, p) for root in roots for p in iter_run_dirs(root)):
+    for root, path in ((r, p) for r in roots for p in iter_run_dirs(r)):
         if path.relative_to(root) in seen:
             continue
         seen.add(path.relative_to(root))

@@ -1,1 +1,2 @@
-"""Policy learning: the ``ppo`` runner on stable-baselines3 (the paper's networks, checkpoints) and the ``dbc`` runner."""
+"""Policy learning: the ``ppo`` runner on stable-baselines3 (the paper's networks, checkpoints) and the
+``dbc`` runner."""

@@ -109,7 +109,8 @@ def committed_files(run_path: Path) -> tuple[list[str], int] | None:
     if progress is None or not (Path(run_path) / CHECKPOINT).is_file():
         return None
     chunks = [str(path.relative_to(run_path)) for _, _, path in _chunks(Run(run_path))]
-    return [*chunks, PROGRESS, CHECKPOINT], int(progress.get("iteration", progress["agent_steps"]))  # older: no iteration
+    # an older progress record has no iteration
+    return [*chunks, PROGRESS, CHECKPOINT], int(progress.get("iteration", progress["agent_steps"]))
 
 
 def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBCAgent, Box, Representations]:

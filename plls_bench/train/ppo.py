@@ -169,7 +169,8 @@ def _start_or_resume(cfg: Config, run: Run, venv: VecEnv, train_seed: int) -> tu
     saved_stats = checkpoint.normalization(run.path)
     if saved_stats is not None:
         normalize.restore(venv, saved_stats)
-    model = load_model(zip_path, resolve_device(cfg.device), venv)  # under quiet_rng: the checkpoint's RNG states follow
+    # under quiet_rng: the checkpoint's RNG states follow
+    model = load_model(zip_path, resolve_device(cfg.device), venv)
     checkpoint.set_rng_state(rng)
     return model, saved, False
 
