@@ -91,8 +91,9 @@ def test_filmed_presets_are_declared_for_runners_with_a_policy(tmp_path: Path) -
 
 
 def test_the_registry_and_config_validation_import_no_simulator_or_torch() -> None:
-    code = ("import sys; from plls_bench.composition import compose; import plls_bench.runner_specs; "
-            "import plls_bench.reproduce; compose(['+experiment=cheetah_plls_dbc']); "
+    code = ("import sys; from plls_bench.composition import compose; "
+            "import plls_bench.runner_specs; import plls_bench.reproduce; "
+            "compose(['+experiment=cheetah_plls_dbc']); "
             "print(sorted({m.split('.')[0] for m in sys.modules} & "
             "{'torch', 'gymnasium', 'dm_control', 'mujoco', 'cv2', 'stable_baselines3', 'matplotlib'}))")
     done = subprocess.run([sys.executable, "-c", code], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)

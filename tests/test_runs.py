@@ -64,7 +64,8 @@ def test_a_run_output_is_made_only_once_every_file_and_its_marker_are_written(tm
             raise KeyboardInterrupt
         path.write_bytes(data)
 
-    for module in ("plls_bench.runs", "plls_bench.files"):  # bytes directly, and under atomic_write_json
+    # bytes directly, and under atomic_write_json
+    for module in ("plls_bench.runs", "plls_bench.files"):
         monkeypatch.setattr(f"{module}.atomic_write_bytes", torn)
     with pytest.raises(KeyboardInterrupt):
         strip.write("h2", {"frames.npz": b"new", "filmstrip.json": {"interval": 8}})
@@ -151,7 +152,8 @@ def test_the_variant_name_leaves_out_exactly_the_keys_that_change_no_result() ->
     want = {*VARIANT_EXCLUDED_KEYS, *unhashed_keys()}
     assert len(excluded) == len(set(excluded)) and set(excluded) == want, (
         "conf/config.yaml hydra.job.config.override_dirname.exclude_keys must list "
-        f"{sorted(want)} (plls_bench/runs.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); got {sorted(excluded)}. "
+        f"{sorted(want)} (plls_bench/runs.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); "
+        f"got {sorted(excluded)}. "
         "A key that changes no result goes into runs.py's HASH_* tables first, then into that list.")
 
 
