@@ -30,9 +30,9 @@ import torch
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
+from baselines.dbc.agent import Batch  # noqa: E402
 from bench.benchmarks_md import announce, finish_section, machine  # noqa: E402
 from bench.dbc_throughput import build_trainer  # noqa: E402
-from baselines.dbc.agent import Batch  # noqa: E402
 from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 
 SECTION = "dbc_threads"

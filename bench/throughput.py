@@ -28,9 +28,10 @@ import json
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from datetime import date
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -45,7 +46,8 @@ from plls_bench.config import PRECISIONS, Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
 from plls_bench.files import atomic_write_json
 from plls_bench.plan import list_presets  # noqa: E402
-from plls_bench.rates import THROUGHPUT_FILE, rate_keys as plan_rate_keys  # noqa: E402
+from plls_bench.rates import THROUGHPUT_FILE  # noqa: E402
+from plls_bench.rates import rate_keys as plan_rate_keys
 from plls_bench.runner_specs import runner_spec  # noqa: E402
 
 SECTION = "throughput"

@@ -6,8 +6,8 @@ the policy, and a resumed run re-evaluates exactly what an uninterrupted one wou
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv

@@ -13,8 +13,9 @@ What one ``iteration`` is differs per runner and is stated once, on its ``Runner
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 

@@ -19,13 +19,19 @@ from typing import Any
 from plls_bench.artifacts import is_built
 from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import Config, ConfigError
-from plls_bench.rates import load_rates, rate_keys
-from plls_bench.records.layout import (PENDING_DIR, is_recorded, partial_iteration, partial_record,
-                                       recorded_artifact, records_dir_for)
-from plls_bench.records.pending import recorded_attempt
-from plls_bench.runner_specs import runner_spec
-from plls_bench.repr.keys import repr_key
 from plls_bench.hashing import stable_hash
+from plls_bench.rates import load_rates, rate_keys
+from plls_bench.records.layout import (
+    PENDING_DIR,
+    is_recorded,
+    partial_iteration,
+    partial_record,
+    recorded_artifact,
+    records_dir_for,
+)
+from plls_bench.records.pending import recorded_attempt
+from plls_bench.repr.keys import repr_key
+from plls_bench.runner_specs import runner_spec
 from plls_bench.runs import Run, config_hash, run_dir_path, variant_name, variant_overrides
 from plls_bench.sweeps import Sweep
 from plls_bench.train.schedule import Schedule

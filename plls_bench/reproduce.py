@@ -23,8 +23,14 @@ from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
 from plls_bench.devices import cpu_model
 from plls_bench.files import read_json
-from plls_bench.launch import (QUEUE_ORDERS, deadline_outlook, estimated_wall_seconds, launcher_overrides, run_plans,
-                               trial_threads)
+from plls_bench.launch import (
+    QUEUE_ORDERS,
+    deadline_outlook,
+    estimated_wall_seconds,
+    launcher_overrides,
+    run_plans,
+    trial_threads,
+)
 from plls_bench.overrides import override_variants
 from plls_bench.plan import PresetPlan, Trial, plan_profile, plan_sweep
 from plls_bench.rates import THROUGHPUT_FILE, rate_machines

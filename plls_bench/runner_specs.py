@@ -15,9 +15,10 @@ config checks (docs/architecture.md, "Adding a runner").
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Literal, get_args
+from typing import TYPE_CHECKING, Literal, get_args
 
 from plls_bench.records.snapshot import ResumeFiles  # run dir -> its last checkpoint's files and iteration
 
@@ -69,7 +70,7 @@ class RunnerSpec:
     # A one-off run of extra learning in one iteration, as (iteration, how many iterations' worth):
     # DBC's burst of init_steps updates. The launch counts it in a first interval that holds it
     # (plan._burst_share); the trainer foretells it to its time limit (train/loop.py).
-    burst: Callable[["Config"], tuple[int, int]] | None = None
+    burst: Callable[[Config], tuple[int, int]] | None = None
 
     def __post_init__(self) -> None:
         if self.checkpoints_at not in get_args(CheckpointsAt):
@@ -131,7 +132,7 @@ def _dbc_checkpoint() -> ResumeFiles:
     return committed_files
 
 
-def _dbc_burst(cfg: "Config") -> tuple[int, int]:
+def _dbc_burst(cfg: Config) -> tuple[int, int]:
     """The reference's init_steps updates at once, in the iteration of agent step init_steps."""
     assert cfg.algo.dbc is not None
     return cfg.algo.dbc.init_steps, cfg.algo.dbc.init_steps

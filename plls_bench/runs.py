@@ -22,9 +22,10 @@ import copy
 import re
 import shutil
 import time
-from dataclasses import asdict, dataclass, is_dataclass
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, is_dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
 from plls_bench.files import append_jsonl, atomic_write_bytes, atomic_write_json, jsonl_line, read_json, read_jsonl
 from plls_bench.hashing import stable_hash

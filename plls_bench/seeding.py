@@ -6,9 +6,10 @@ from ``data_seed`` unless ``repr.per_trial`` asks for one per trial.
 from __future__ import annotations
 
 import random
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING
 
 import numpy as np
 

@@ -9,7 +9,7 @@ Nothing here imports torch or the simulators.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
 from omegaconf import OmegaConf
@@ -57,7 +57,7 @@ def sweep_names() -> list[str]:
     return sorted(p.stem for p in SWEEP_DIR.glob("*.yaml"))
 
 
-@lru_cache(maxsize=None)
+@cache
 def load_sweep(name: str) -> Sweep:
     """``conf/sweep/<name>.yaml``, checked: the preset exists, the key is in its config, the values
     are distinct and include the preset's own value. Errors name the file and key."""

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 import io
-from functools import lru_cache
+from collections.abc import Sequence
+from functools import cache
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from plls_bench.composition import compose
 from plls_bench.config import Config
 from plls_bench.files import read_json
 from plls_bench.report.registry import ENTRIES
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run, STATUS_DONE, config_hash, run_dir_path
+from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, STATUS_DONE, Run, config_hash, run_dir_path
 from plls_bench.sweeps import load_sweep, sweep_names
 
 # The group choices of each registry preset; shipped presets where they exist (PPO: issue 4, the
@@ -40,7 +40,7 @@ PRESETS: dict[str, list[str]] = {
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def _compose(experiment: str, budget: str, runs_dir: str, *overrides: str) -> Config:
     cfg = compose([*PRESETS[experiment], f"budget={budget}", f"runs_dir={runs_dir}", "progress=false", *overrides])
     return dataclasses.replace(cfg, experiment=experiment)  # `experiment=` on a command line picks a preset

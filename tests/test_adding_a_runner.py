@@ -4,12 +4,13 @@ and measurement lookup, the collector's per-runner lookups and the records' expo
 table to extend."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 import pytest
 
-from bench.throughput import MEASURES, rate_keys as bench_rate_keys
+from bench.throughput import MEASURES
+from bench.throughput import rate_keys as bench_rate_keys
 from plls_bench import runner_specs
 from plls_bench.config.runners import RUNNER_CHECKS, validate_ppo
 from plls_bench.plan import plan_profile

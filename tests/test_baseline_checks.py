@@ -9,8 +9,7 @@ import pytest
 
 from plls_bench.report.claims import read_claims
 from plls_bench.report.collect import PAPER_DIR
-from plls_bench.report.verdicts import (INCONCLUSIVE, NOT_MADE, NOT_REPRODUCED, REPRODUCED, Estimate, Judged,
-                                        gate_all)
+from plls_bench.report.verdicts import INCONCLUSIVE, NOT_MADE, NOT_REPRODUCED, REPRODUCED, Estimate, Judged, gate_all
 
 DBC_CHECK = "Suite DBC reaches the published pixel range on cheetah-run at 100k env steps (final return)"
 

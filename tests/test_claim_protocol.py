@@ -16,8 +16,17 @@ from scipy import stats
 from plls_bench.report.claim_levels import least_trials, median_interval
 from plls_bench.report.claims import read_claims
 from plls_bench.report.collect import PAPER_DIR
-from plls_bench.report.protocol import (A_BETTER, EQUIVALENT, UNDECIDED, compare_arms, holm, permutation_p,
-                                        planned_n, t_interval, welch)
+from plls_bench.report.protocol import (
+    A_BETTER,
+    EQUIVALENT,
+    UNDECIDED,
+    compare_arms,
+    holm,
+    permutation_p,
+    planned_n,
+    t_interval,
+    welch,
+)
 from tests.test_report_matched import arm, claims, row
 
 

@@ -12,7 +12,6 @@ from plls_bench.config import BUDGET_NAMES, ENV_NAMES, BudgetConfig, ConfigError
 from plls_bench.sweeps import load_sweep
 from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path, unwritable_reason
 
-
 # algo choices run by another runner on the env's state vector (state SAC: the DBC runner)
 STATE_ALGOS = {"sac_state": ["runner=dbc", "env.pixels=false"]}
 # algo choices of the DBC runner whose name does not start with dbc (pixel SAC: cheetah's pixels)

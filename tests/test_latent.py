@@ -10,9 +10,9 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from plls_bench.envs import make_vec_env
 from plls_bench.latent import LatentAction, LatentObservation, latent_modules, wrap_latent
+from plls_bench.repr.accounting import parameter_counts
 from plls_bench.repr.store import ensure_representations
 from plls_bench.repr.train import new_model
-from plls_bench.repr.accounting import parameter_counts
 from plls_bench.trunks import pixels_to_unit
 from tests.conftest import compose_preset
 

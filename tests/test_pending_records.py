@@ -12,7 +12,8 @@ import pytest
 from plls_bench.files import read_json, read_jsonl
 from plls_bench.plan import plan_profile
 from plls_bench.records import export
-from plls_bench.records.export import export_records, main as records_main
+from plls_bench.records.export import export_records
+from plls_bench.records.export import main as records_main
 from plls_bench.records.layout import PARTIAL_DIR, PENDING_DIR
 from plls_bench.reproduce import format_plan
 from plls_bench.runs import Run

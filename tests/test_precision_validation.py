@@ -8,8 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.analysis.precision_validation import (DBC_MEASURES, PPO_MEASURES, compare, gaussian_kl, main,
-                                                      mean_abs, passes, relative_l2)
+from plls_bench.analysis.precision_validation import (
+    DBC_MEASURES,
+    PPO_MEASURES,
+    compare,
+    gaussian_kl,
+    main,
+    mean_abs,
+    passes,
+    relative_l2,
+)
 
 
 def test_gaussian_kl_is_zero_for_equal_and_known_for_shifted_means() -> None:

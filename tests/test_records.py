@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from plls_bench.records import export, records_dir_for
-from plls_bench.records.export import export_records, main as records_main, record_files
+from plls_bench.records.export import export_records, record_files
+from plls_bench.records.export import main as records_main
 from plls_bench.report.collect import render_all
 from plls_bench.report.load import Runs
 from plls_bench.runs import PARAMS_FILE

@@ -10,8 +10,18 @@ import pytest
 import scipy.stats
 from rliable import metrics
 
-from plls_bench.report.stats import (_mean_and_iqm, _poi, ahead_from, align, band, bootstrap_ci,
-                                     convergence_index, probability_of_improvement, smooth, summarise)
+from plls_bench.report.stats import (
+    _mean_and_iqm,
+    _poi,
+    ahead_from,
+    align,
+    band,
+    bootstrap_ci,
+    convergence_index,
+    probability_of_improvement,
+    smooth,
+    summarise,
+)
 from plls_bench.report.tables import Table, fmt, fmt_ci, tex
 
 

@@ -12,8 +12,13 @@ import torch
 from plls_bench.data import get_dataset
 from plls_bench.files import atomic_write_json, read_json, read_jsonl
 from plls_bench.repr.keys import sha256
-from plls_bench.repr.store import (CheckpointError, CheckpointMismatch, ensure_artifact, ensure_representations,
-                                   load_weights)
+from plls_bench.repr.store import (
+    CheckpointError,
+    CheckpointMismatch,
+    ensure_artifact,
+    ensure_representations,
+    load_weights,
+)
 from plls_bench.repr.train import new_model
 from plls_bench.runner import execute
 from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE

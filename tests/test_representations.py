@@ -12,8 +12,13 @@ import pytest
 from plls_bench.analysis.filmstrip import filmstrip_config, record
 from plls_bench.composition import compose
 from plls_bench.repr.keys import repr_path
-from plls_bench.repr.store import (MissingArtifact, Representations, ensure_representations, find_artifact,
-                                   load_representations)
+from plls_bench.repr.store import (
+    MissingArtifact,
+    Representations,
+    ensure_representations,
+    find_artifact,
+    load_representations,
+)
 from plls_bench.train.agent import build_vec_env
 from tests.conftest import compose_preset
 

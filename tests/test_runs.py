@@ -11,7 +11,7 @@ import yaml
 from plls_bench.composition import CONF_DIR, recorded_config
 from plls_bench.files import atomic_write_json, jsonl_line, read_jsonl
 from plls_bench.runner import execute
-from plls_bench.runs import Run, VARIANT_EXCLUDED_KEYS, config_hash, iter_run_dirs, unhashed_keys, variant_name
+from plls_bench.runs import VARIANT_EXCLUDED_KEYS, Run, config_hash, iter_run_dirs, unhashed_keys, variant_name
 from tests.conftest import compose_preset
 
 

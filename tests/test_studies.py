@@ -11,8 +11,15 @@ import pytest
 
 from plls_bench.analysis import measures
 from plls_bench.analysis.mountaincar import MountainCar
-from plls_bench.analysis.studies import (STUDIES, encode, reconstruction, sample_actions, structure, study_rngs,
-                                        tracking_steps)
+from plls_bench.analysis.studies import (
+    STUDIES,
+    encode,
+    reconstruction,
+    sample_actions,
+    structure,
+    study_rngs,
+    tracking_steps,
+)
 from plls_bench.composition import compose
 from plls_bench.config import ConfigError
 from plls_bench.files import read_json

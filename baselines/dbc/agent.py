@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import copy
 import math
-from functools import partial
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from functools import partial
+from typing import Any
 
 import numpy as np
 import torch

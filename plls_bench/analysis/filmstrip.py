@@ -17,8 +17,8 @@ how to load it, is the runner registry's, which sits above this module; the comm
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import cv2
 import gymnasium as gym

@@ -33,7 +33,7 @@ class MountainCar:
     def close(self) -> None:
         self._env.close()
 
-    def __enter__(self) -> "MountainCar":
+    def __enter__(self) -> MountainCar:
         return self
 
     def __exit__(self, *exc: object) -> None:

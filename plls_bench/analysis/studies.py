@@ -11,9 +11,9 @@ or one step each (``onestep``, ``generalisation``). It writes docs/architecture.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import torch

@@ -19,14 +19,38 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
 from plls_bench.config.analysis import LATENT_CHOICES, STUDY_NAMES, FilmstripConfig, StudyConfig
-from plls_bench.config.checks import (ConfigError, Validated, check, check_choice, check_fraction,
-                                      check_nonnegative, check_positive)
-from plls_bench.config.learning import (ALGO_NAMES, BUDGET_NAMES, DBC_ENCODERS, FEATURE_EXTRACTORS,
-                                        PPO_ACTIVATIONS, TRANSITION_MODELS, AlgoConfig, BudgetConfig, DBCConfig,
-                                        PPOConfig)
+from plls_bench.config.checks import (
+    ConfigError,
+    Validated,
+    check,
+    check_choice,
+    check_fraction,
+    check_nonnegative,
+    check_positive,
+)
+from plls_bench.config.learning import (
+    ALGO_NAMES,
+    BUDGET_NAMES,
+    DBC_ENCODERS,
+    FEATURE_EXTRACTORS,
+    PPO_ACTIVATIONS,
+    TRANSITION_MODELS,
+    AlgoConfig,
+    BudgetConfig,
+    DBCConfig,
+    PPOConfig,
+)
 from plls_bench.config.runners import RUNNER_CHECKS
-from plls_bench.config.tasks import (DATA_POLICIES, ENV_NAMES, REPR_KINDS, VAE_ACTIVATIONS, ActionReprConfig,
-                                     EnvConfig, ReprConfig, StateReprConfig)
+from plls_bench.config.tasks import (
+    DATA_POLICIES,
+    ENV_NAMES,
+    REPR_KINDS,
+    VAE_ACTIVATIONS,
+    ActionReprConfig,
+    EnvConfig,
+    ReprConfig,
+    StateReprConfig,
+)
 
 __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "DBC_ENCODERS", "DEVICES", "ENV_NAMES", "FEATURE_EXTRACTORS",
            "LATENT_CHOICES", "PPO_ACTIVATIONS", "PRECISIONS", "REPR_KINDS", "STUDY_NAMES", "TRANSITION_MODELS",

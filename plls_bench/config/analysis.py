@@ -9,7 +9,6 @@ from omegaconf import MISSING
 from plls_bench.config.checks import Validated, check, check_choice, check_positive
 from plls_bench.hashing import stable_hash
 
-
 # --------------------------------------------------------------------------- studies
 STUDY_NAMES = ("multistep", "onestep", "generalisation")
 LATENT_CHOICES = ("e", "mu")

@@ -7,7 +7,8 @@ the same. Each check raises :class:`ConfigError` with one line naming the offend
 """
 from __future__ import annotations
 
-from typing import Callable, Optional, Protocol
+from collections.abc import Callable
+from typing import Optional, Protocol
 
 from plls_bench.config.analysis import StudyConfig
 from plls_bench.config.checks import check

@@ -7,7 +7,7 @@ image convention for PPO's policy, V_s's batches, DBC's encoder), so they comput
 """
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import gymnasium as gym
 

@@ -13,9 +13,21 @@ from pathlib import Path
 from typing import Any
 
 from plls_bench.files import read_json
-from plls_bench.records.layout import (ARTIFACTS_DIR, EXCLUDED_BUDGETS, MAX_FILE_BYTES, MAX_PARTIAL_BYTES,
-                                       PART_SUFFIX, PARTIAL_DIR, PARTIAL_MARKER, PENDING_DIR, PENDING_MARKER,
-                                       REPR_KINDS, done_record_hash, other_done_record, records_dir_for)
+from plls_bench.records.layout import (
+    ARTIFACTS_DIR,
+    EXCLUDED_BUDGETS,
+    MAX_FILE_BYTES,
+    MAX_PARTIAL_BYTES,
+    PART_SUFFIX,
+    PARTIAL_DIR,
+    PARTIAL_MARKER,
+    PENDING_DIR,
+    PENDING_MARKER,
+    REPR_KINDS,
+    done_record_hash,
+    other_done_record,
+    records_dir_for,
+)
 from plls_bench.records.pending import pending_marker, reached_iteration, recorded_attempt
 from plls_bench.records.snapshot import Content, checkpoint_snapshot, record_files
 from plls_bench.runner_specs import RUNNERS

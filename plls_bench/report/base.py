@@ -2,9 +2,10 @@
 build receives, what a build returns, and the status of a rendered id (index.json, the README)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -36,13 +37,13 @@ class Output:
     """What a build produced. ``data`` is the tidy (long) table of what was drawn; ``trials``
     maps each series to the number of trials (or runs) it shows."""
 
-    figure: "Figure | None" = None
-    data: "pd.DataFrame | None" = None
-    table: "Table | None" = None
+    figure: Figure | None = None
+    data: pd.DataFrame | None = None
+    table: Table | None = None
     trials: dict[str, int] = field(default_factory=dict)
     empty: bool = False
     # figures beyond the entry's own, by file name (``variants_<preset>``): each with its tidy data
-    figures: "dict[str, tuple[Figure, pd.DataFrame]]" = field(default_factory=dict)
+    figures: dict[str, tuple[Figure, pd.DataFrame]] = field(default_factory=dict)
     lines: list[str] = field(default_factory=list)  # the README's index lines of what the build found
 
 

@@ -18,9 +18,9 @@ settings and each claim's own (margins, planned trials, solve criteria, readings
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable
 
 import pandas as pd
 
@@ -39,8 +39,19 @@ from plls_bench.report.protocol import adjust, holm
 from plls_bench.report.returns import DEFAULT_X_AXIS
 from plls_bench.report.sweep_claim import sweep_best
 from plls_bench.report.tables import NA, Table, fmt, read_paper
-from plls_bench.report.verdicts import (NOT_MADE, NOT_REPRODUCED, NOT_RUN, NOT_SOLVED, RULES, VERDICTS, Estimate,
-                                        Judged, gate_all, rule_text, verdict)
+from plls_bench.report.verdicts import (
+    NOT_MADE,
+    NOT_REPRODUCED,
+    NOT_RUN,
+    NOT_SOLVED,
+    RULES,
+    VERDICTS,
+    Estimate,
+    Judged,
+    gate_all,
+    rule_text,
+    verdict,
+)
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 SCORES = ("final", "auc")  # p_improvement's per-trial score: the final return, or the mean over the curve

@@ -6,9 +6,9 @@ from __future__ import annotations
 import logging
 import struct
 import traceback
+from collections.abc import Iterable
 from dataclasses import asdict
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 

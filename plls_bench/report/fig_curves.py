@@ -8,8 +8,8 @@ import pandas as pd
 
 from plls_bench.report.base import BASE_BLUE, PLLS_RED, Entry, Options, Output, Source
 from plls_bench.report.load import Runs
-from plls_bench.report.plot import empty_output, new_figure, suptitle
 from plls_bench.report.matched import NotJudged, matched
+from plls_bench.report.plot import empty_output, new_figure, suptitle
 from plls_bench.report.returns import Curves, load_curves, x_label
 from plls_bench.report.stats import align, band
 from plls_bench.report.tables import fmt, plural

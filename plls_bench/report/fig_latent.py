@@ -10,8 +10,17 @@ import pandas as pd
 
 from plls_bench.report.base import Entry, Options, Output
 from plls_bench.report.load import Runs
-from plls_bench.report.plot import (BLUE_DARK, BLUE_LIGHT, PURPLE_DARK, PURPLE_LIGHT, letter, new_figure,
-                                    empty_output, rgb_colours, suptitle)
+from plls_bench.report.plot import (
+    BLUE_DARK,
+    BLUE_LIGHT,
+    PURPLE_DARK,
+    PURPLE_LIGHT,
+    empty_output,
+    letter,
+    new_figure,
+    rgb_colours,
+    suptitle,
+)
 from plls_bench.report.trials import Trial
 
 STUDY_SHAPES: dict[str, dict[str, tuple[int | None, ...]]] = {  # None: any size (latent dims: D)

@@ -72,7 +72,7 @@ def placeholder(size: tuple[float, float], ref: str, title: str, problems: list[
     return fig
 
 
-def empty_output(runs: "Runs", entry: Entry, title: str) -> Output:
+def empty_output(runs: Runs, entry: Entry, title: str) -> Output:
     """The build result when an entry has nothing to draw: a placeholder listing the gaps."""
     return Output(placeholder(entry.size, entry.ref, title, [str(g) for g in runs.gaps]),
                   trials={s.label: 0 for s in entry.sources}, empty=True)

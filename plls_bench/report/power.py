@@ -5,7 +5,7 @@ primary comparisons), the paper's own trial count, the planned n of ``claims.yam
 trial costs by the dry run's rates (``bench/throughput.json`` through :mod:`plls_bench.plan`)."""
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import pandas as pd
 
@@ -32,7 +32,7 @@ CAPTION = (
     "from the rates in bench/throughput.json measured on the reference CPU.")
 
 
-@lru_cache(maxsize=None)
+@cache
 def trial_seconds(experiment: str, budget: str) -> float | None:
     """The dry run's compute for one more trial of ``experiment`` at ``budget`` (its shared
     artifacts costed in the first trial only, so the cheapest trial is the marginal one); None

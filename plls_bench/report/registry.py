@@ -5,8 +5,18 @@ from __future__ import annotations
 
 from functools import partial
 
-from plls_bench.report import (claims, comparisons, efficiency, fig_arch, fig_curves, fig_images, fig_latent,
-                               fig_sweep, power, variants_table)
+from plls_bench.report import (
+    claims,
+    comparisons,
+    efficiency,
+    fig_arch,
+    fig_curves,
+    fig_images,
+    fig_latent,
+    fig_sweep,
+    power,
+    variants_table,
+)
 from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
 from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
 
@@ -43,6 +53,8 @@ FIG20 = Entry("fig20", "Fig. 20", "CarRacing ablation, average return", (CR_PLLS
               CR_CURVES, CR_READS, references=CR_RANDOM)
 FIG21 = Entry("fig21", "Fig. 21", "Cheetah run, average return", (CH_PLLS, CH_DBC),
               fig_curves.return_curves, EVAL)
+
+RETURN_COMPARISONS = (FIG10, FIG10_GSDE, FIG18, FIG18_GSDE, FIG20, FIG21)  # the figures whose returns are compared
 
 ENTRIES: tuple[Entry, ...] = (
     Entry("table1", "Table 1", "Hyper-parameters of PL-LS with PPO on MountainCar", (MC_PLLS, MC_PPO),
@@ -99,9 +111,8 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("variants", "Variants", "Every variant found, beside its preset's default", (), variants_table.variants_view,
           f"{EVAL} of every <preset>/<variant> dir of the runs and records", kind="table"),
     Entry("stats", "Return statistics", "IQM, mean and probability of improvement for every return comparison",
-          tuple(dict.fromkeys(s for e in (FIG10, FIG10_GSDE, FIG18, FIG18_GSDE, FIG20, FIG21) for s in e.sources)),
-          partial(comparisons.return_statistics, comparisons=(FIG10, FIG10_GSDE, FIG18, FIG18_GSDE, FIG20, FIG21)), EVAL,
-          kind="table"),
+          tuple(dict.fromkeys(s for e in RETURN_COMPARISONS for s in e.sources)),
+          partial(comparisons.return_statistics, comparisons=RETURN_COMPARISONS), EVAL, kind="table"),
     Entry("claims", "Paper vs suite", "Every quantitative claim of the paper beside the suite's value",
           (MC_PLLS, MC_PPO, MC_PLLS_GSDE, MC_PPO_GSDE, MC_ZOO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC,
            CH_SAC, CH_SAC_PIXEL, S("mountaincar_va", "V_a"), S("carracing_va", "V_a")),

@@ -9,8 +9,8 @@ with replacement independently, fixed random state).
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterator, Sequence
 
 import numpy as np
 from rliable import library, metrics

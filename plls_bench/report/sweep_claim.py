@@ -15,13 +15,13 @@ from __future__ import annotations
 import math
 
 from plls_bench.report.claim_settings import ClaimSettings
+from plls_bench.report.load import Runs
 from plls_bench.report.matched import NotJudged, finished_counts, require_trials
-from plls_bench.report.returns import DEFAULT_X_AXIS
 from plls_bench.report.protocol import B_BETTER, TOO_FEW, Comparison, compare_arms, tail_mean
+from plls_bench.report.returns import DEFAULT_X_AXIS
 from plls_bench.report.stats import probability_of_improvement
 from plls_bench.report.sweep_arms import matched_arms, sweep_arms
 from plls_bench.report.tables import NA, fmt, fmt_ci
-from plls_bench.report.load import Runs
 from plls_bench.report.verdicts import Estimate
 from plls_bench.sweeps import load_sweep
 

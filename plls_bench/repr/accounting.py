@@ -5,7 +5,8 @@ encoder, V_a's decoder and the policy, of which only the policy is trainable by 
 """
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 import torch
 from torch import Tensor, nn

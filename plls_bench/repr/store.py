@@ -21,9 +21,9 @@ Every trial of a task shares one artifact, built once under a file lock. Two ent
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Mapping
 
 import torch
 from filelock import FileLock
@@ -34,8 +34,17 @@ from plls_bench.devices import resolve_device
 from plls_bench.files import read_json
 from plls_bench.records.layout import recorded_artifact
 from plls_bench.records.restore import copy_artifact_files
-from plls_bench.repr.keys import (CONFIG_KEYS, FILES, KINDS, NAMES, build_command, model_config, repr_key,
-                                  repr_path, sha256)
+from plls_bench.repr.keys import (
+    CONFIG_KEYS,
+    FILES,
+    KINDS,
+    NAMES,
+    build_command,
+    model_config,
+    repr_key,
+    repr_path,
+    sha256,
+)
 from plls_bench.repr.models import ActionVAE, StateVAE
 from plls_bench.repr.train import build, new_model
 from plls_bench.seeding import quiet_rng

@@ -25,8 +25,9 @@ Nothing past the checkpoint is lost, unlike a job killed at its limit.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from tqdm import tqdm  # the type of the bar progress_bar returns
 

@@ -7,9 +7,10 @@ here, below all of them, and imports nothing that trains.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # types only: this module stays free of torch and the simulators
     from plls_bench.config import Config
