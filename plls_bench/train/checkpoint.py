@@ -141,7 +141,8 @@ def policy_files(run_path: Path) -> dict[str, Path | bytes]:
         return {}
     files: dict[str, Path | bytes] = {rel: Path(run_path) / rel for rel in found[0]}
     model = found[0][0]  # the zip comes first
-    files[model] = without_optimizer_state(Path(run_path, model).read_bytes())
+    if files[model].is_file():  # a missing zip stays a path: its reader says so, as for any file here
+        files[model] = without_optimizer_state(files[model].read_bytes())
     return files
 
 
