@@ -9,8 +9,8 @@ from pathlib import Path
 
 import torch
 
-from plls_bench.devices import cpu_model
-from plls_bench.files import atomic_write_bytes
+from plls_bench.core.atomic_files import atomic_write_bytes
+from plls_bench.rundirs.devices import cpu_model
 
 REPO = Path(__file__).resolve().parent.parent
 

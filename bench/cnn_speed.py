@@ -32,8 +32,8 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
-from plls_bench.composition import compose  # noqa: E402
 from plls_bench.repr.train import new_model  # noqa: E402
+from plls_bench.rundirs.composition import compose  # noqa: E402
 from plls_bench.train.networks import PaperCNN  # noqa: E402
 
 SECTION = "cnn_speed"

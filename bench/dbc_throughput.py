@@ -13,7 +13,7 @@ VecEnv (render, frame stack, stochastic policy forward, replay insert; no update
 env steps (frames, counting the preset's action repeat) per second. Updates: median time of ``--updates`` full DBC
 updates (critic, bisimulation/transition/reward, actor and temperature on even steps, targets)
 on minibatches sampled from the replay filled by the acting phase. ``--layouts``: ``channels_last``
-is the suite's (every conv trunk runs in its weights' layout, ``plls_bench/trunks.py``);
+is the suite's (every conv trunk runs in its weights' layout, ``plls_bench/repr/pixel_trunk.py``);
 ``contiguous`` converts the built agent's modules back before any update, the layout before that
 change. ``--precisions`` sets the top-level ``precision`` key (``bf16``: autocast around the conv
 trunks; DBC failed the bf16 null comparison, so this is speed only). Prints the command and the
@@ -34,11 +34,11 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, finish_section  # noqa: E402
-from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS  # noqa: E402
+from plls_bench.core.seeding import seed_everything  # noqa: E402
 from plls_bench.repr.store import load_representations  # noqa: E402
-from plls_bench.runs import Run  # noqa: E402
-from plls_bench.seeding import seed_everything  # noqa: E402
+from plls_bench.rundirs.composition import compose  # noqa: E402
+from plls_bench.rundirs.run_dir import Run  # noqa: E402
 from plls_bench.train.dbc import DBCTrainer  # noqa: E402
 
 SECTION = "dbc_throughput"

@@ -30,8 +30,8 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, finish_section  # noqa: E402
-from plls_bench.composition import compose  # noqa: E402
 from plls_bench.envs import make_vec_env  # noqa: E402
+from plls_bench.rundirs.composition import compose  # noqa: E402
 
 SECTION = "env_speed"
 SETTINGS = {  # name -> (overrides, subprocess vec env)

@@ -1,4 +1,4 @@
-"""What ``retain_freed_memory`` (plls_bench/heap.py) saves a DBC update: CPU s and page faults per
+"""What ``retain_freed_memory`` (plls_bench/core/malloc_retain.py) saves a DBC update: CPU s and page faults per
 update with glibc's default memory handling and with freed memory kept in the heap, in one run.
 
     nice -n 10 .venv/bin/python bench/malloc_retain.py                  # cheetah_dbc, budget=quick
@@ -35,7 +35,7 @@ sys.path.insert(0, str(REPO))
 from bench.benchmarks_md import announce, finish_section, machine  # noqa: E402
 from bench.dbc_threads import add_child_arguments, filled_batch  # noqa: E402
 from bench.dbc_throughput import build_trainer  # noqa: E402
-from plls_bench.heap import retain_freed_memory  # noqa: E402
+from plls_bench.core.malloc_retain import retain_freed_memory  # noqa: E402
 
 SECTION = "malloc_retain"
 SETTINGS = ("default", "retain", "default+thp", "retain+thp")

@@ -9,7 +9,7 @@ warm-up iteration, then the ``--iterations`` timed iterations go round-robin ove
 (setting A, B, A, B, ...), so a drift in the machine's other load hits every setting alike: compare
 ratios within one run only.
 
-- ``channels_last`` is the suite's layout (``plls_bench/trunks.py``: every conv trunk runs in its
+- ``channels_last`` is the suite's layout (``plls_bench/repr/pixel_trunk.py``: every conv trunk runs in its
   conv weights' layout). ``contiguous`` converts the built policy's weights (and V_s's frozen
   encoder in the latent wrapper, for PL-LS and V_s only) back with
   ``.to(memory_format=torch.contiguous_format)``, which reproduces the layout before that change;
@@ -35,12 +35,12 @@ sys.path.insert(0, str(REPO))
 from bench.benchmarks_md import announce, finish_section  # noqa: E402
 from bench.ppo_throughput import Sample, build, iteration, summarize  # noqa: E402
 from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
-from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS  # noqa: E402
-from plls_bench.latent import latent_modules  # noqa: E402
+from plls_bench.repr.latent_wrappers import latent_modules  # noqa: E402
+from plls_bench.repr.pixel_trunk import memory_format  # noqa: E402
+from plls_bench.rundirs.composition import compose  # noqa: E402
 from plls_bench.train.ppo import EpisodeStats  # noqa: E402
-from plls_bench.trunks import memory_format  # noqa: E402
 
 SECTION = "ppo_layouts"
 NO_BF16 = ("bf16 not run here: a CPU without bf16 instructions (no avx512_bf16 / AMX) emulates it, "

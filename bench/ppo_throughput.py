@@ -28,12 +28,12 @@ sys.path.insert(0, str(REPO))
 
 from bench.benchmarks_md import announce, finish_section  # noqa: E402
 from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
-from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS  # noqa: E402
+from plls_bench.core.seeding import derive_seeds, seed_everything  # noqa: E402
 from plls_bench.repr.store import load_representations  # noqa: E402
-from plls_bench.seeding import derive_seeds, seed_everything  # noqa: E402
-from plls_bench.train.agent import build_vec_env, new_model  # noqa: E402
+from plls_bench.rundirs.composition import compose  # noqa: E402
 from plls_bench.train.ppo import EpisodeStats  # noqa: E402
+from plls_bench.train.ppo_model import build_vec_env, new_model  # noqa: E402
 
 SECTION = "ppo_throughput"
 

@@ -4,7 +4,7 @@
     nice -n 10 .venv/bin/python bench/throughput.py --keys collect/ repr_action/   # refresh some keys
     nice -n 10 .venv/bin/python bench/throughput.py --backend envpool --presets carracing_data carracing_plls_ppo
 
-Measures, on this machine, the rates ``plls_bench/plan.py`` multiplies work by: random-policy
+Measures, on this machine, the rates ``plls_bench/pipeline/plan.py`` multiplies work by: random-policy
 collection (env steps/s, ``collect/<env>``), V_s / V_a training (samples/s over one epoch of
 random inputs of the right shape, ``repr_state|repr_action/<env>``), policy learning and
 evaluation of each PPO and DBC preset (env steps/s, ``train/<preset>``, ``eval/<preset>``) and
@@ -41,14 +41,14 @@ sys.path.insert(0, str(REPO))
 from bench import dbc_throughput, ppo_throughput  # noqa: E402
 from bench.benchmarks_md import announce, machine, write_section  # noqa: E402
 from bench.representations import TINY_REPR, prepare_representations  # noqa: E402
-from plls_bench.composition import compose  # noqa: E402
 from plls_bench.config import PRECISIONS, Config  # noqa: E402
 from plls_bench.config.tasks import ENV_BACKENDS, ENVPOOL_GYM_IDS  # noqa: E402
-from plls_bench.files import atomic_write_json
-from plls_bench.plan import list_presets  # noqa: E402
-from plls_bench.rates import THROUGHPUT_FILE  # noqa: E402
-from plls_bench.rates import rate_keys as plan_rate_keys
-from plls_bench.runner_specs import runner_spec  # noqa: E402
+from plls_bench.core.atomic_files import atomic_write_json
+from plls_bench.pipeline.plan import list_presets  # noqa: E402
+from plls_bench.pipeline.rates import THROUGHPUT_FILE  # noqa: E402
+from plls_bench.pipeline.rates import rate_keys as plan_rate_keys
+from plls_bench.pipeline.runner_registry import runner_spec  # noqa: E402
+from plls_bench.rundirs.composition import compose  # noqa: E402
 
 SECTION = "throughput"
 COMPARE_SECTION = "throughput_compare"  # one per --backend: a run measures one backend's keys
@@ -77,9 +77,9 @@ def collect_rate(cfg: Config, steps: int, clock: str) -> float:
 
 def repr_rate(cfg: Config, which: str, samples: int, clock: str) -> float:
     """Training samples per second of ``clock`` of one V_s / V_a epoch on random inputs of the task's shape."""
-    from plls_bench.devices import resolve_device
     from plls_bench.repr.fit import Split, fit, torch_threads
     from plls_bench.repr.train import action_dim, new_model, training_threads
+    from plls_bench.rundirs.devices import resolve_device
 
     mcfg = getattr(cfg.repr, which)
     rng = np.random.default_rng(0)
@@ -101,7 +101,7 @@ def repr_rate(cfg: Config, which: str, samples: int, clock: str) -> float:
 
 def study_rate(cfg: Config, runs_dir: str, clock: str) -> float:
     """Runs per second of ``clock`` of a study (its V_a built beforehand: that is costed as repr_action)."""
-    from plls_bench.runner import execute
+    from plls_bench.pipeline.execute import execute
 
     prepare_representations(cfg)
     with tempfile.TemporaryDirectory() as tmp:
@@ -147,7 +147,7 @@ def _dbc(cfg: Config, keys: list[str], args: argparse.Namespace, engine: tuple[s
 
 
 class Measurement(NamedTuple):
-    """How one kind of work is timed: one value per rate key of ``kinds`` (``plls_bench.rates.rate_keys``)."""
+    """How one kind of work is timed: one value per rate key of ``kinds`` (``plls_bench.pipeline.rates.rate_keys``)."""
 
     measure: Callable[[Config, list[str], argparse.Namespace, tuple[str, ...]], list[tuple[float, str]]]
     kinds: tuple[str, ...]  # the rate kinds it gives, in the order ``measure`` returns them

@@ -15,10 +15,10 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from plls_bench.composition import CONF_DIR, compose, expand_sweeps, register
 from plls_bench.config import ConfigError, to_config
 from plls_bench.config.checks import check_writable_dir
-from plls_bench.devices import require_device
+from plls_bench.rundirs.composition import CONF_DIR, compose, expand_sweeps, register
+from plls_bench.rundirs.devices import require_device
 
 register()
 
@@ -52,7 +52,7 @@ def _launcher(overrides: list[str]) -> str:
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
 def hydra_main(dcfg: DictConfig) -> None:
-    from plls_bench.runner import execute
+    from plls_bench.pipeline.execute import execute
 
     execute(to_config(dcfg), Path(HydraConfig.get().runtime.output_dir))
 

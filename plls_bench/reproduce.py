@@ -5,9 +5,9 @@ Trials whose run dir is already done with the same config are not launched again
 interrupted reproduce.sh re-run finishes only the rest; an interrupted trial resumes from its
 checkpoint. Trials a committed record holds done (``results/records``) count as done too
 (``--rerun-recorded`` runs them again), so a fresh clone runs only what is missing. Trials run
-as Hydra multiruns (``plls_bench.launch``): on this machine one per trial, ``--jobs`` at a time
+as Hydra multiruns (``plls_bench.pipeline.launch``): on this machine one per trial, ``--jobs`` at a time
 with ``--launcher joblib``; on SLURM one per preset, through submitit. ``--override KEY=VALUE`` runs
-an ablation: a variant of each preset run, beside its own runs (``plls_bench.overrides``).
+an ablation: a variant of each preset run, beside its own runs (``plls_bench.pipeline.overrides``).
 """
 from __future__ import annotations
 
@@ -17,13 +17,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-from plls_bench.composition import CONF_DIR, filmstrip_config
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, FilmstripConfig
 from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
-from plls_bench.devices import cpu_model
-from plls_bench.files import read_json
-from plls_bench.launch import (
+from plls_bench.core.atomic_files import read_json
+from plls_bench.core.signals import TERMINATED_EXIT_CODE, Terminated, sigterm_raises
+from plls_bench.pipeline.launch import (
     QUEUE_ORDERS,
     deadline_outlook,
     estimated_wall_seconds,
@@ -31,14 +30,15 @@ from plls_bench.launch import (
     run_plans,
     trial_threads,
 )
-from plls_bench.overrides import override_variants
-from plls_bench.plan import PresetPlan, Trial, plan_profile, plan_sweep
-from plls_bench.rates import THROUGHPUT_FILE, rate_machines
-from plls_bench.records.layout import record_path, records_dir_for
-from plls_bench.runner_specs import runner_spec
-from plls_bench.runs import STATUS_DONE, Run, config_hash, variant_overrides
-from plls_bench.signals import TERMINATED_EXIT_CODE, Terminated, sigterm_raises
-from plls_bench.sweeps import load_sweep, sweep_names
+from plls_bench.pipeline.overrides import override_variants
+from plls_bench.pipeline.plan import PresetPlan, Trial, plan_profile, plan_sweep
+from plls_bench.pipeline.rates import THROUGHPUT_FILE, rate_machines
+from plls_bench.pipeline.runner_registry import runner_spec
+from plls_bench.pipeline.sweeps import load_sweep, sweep_names
+from plls_bench.rundirs.composition import CONF_DIR, filmstrip_config
+from plls_bench.rundirs.devices import cpu_model
+from plls_bench.rundirs.record_layout import record_path, records_dir_for
+from plls_bench.rundirs.run_dir import STATUS_DONE, Run, config_hash, variant_overrides
 
 LAUNCHERS = ("local", "joblib", "slurm")
 # Smoke numbers check the pipeline, not the paper: the committed results/ is written only from
@@ -105,7 +105,7 @@ def _filmstrip_presets() -> dict[str, FilmstripConfig]:
 def film_policies(plans: list[PresetPlan]) -> list[str]:
     """Film the first done trial that holds a policy (:func:`_film_target`) of each filmed preset
     (``budget.eval_max_steps`` caps the episode, as for its test episodes); a filmstrip already made of the same
-    run with the same settings (its done marker, :class:`plls_bench.runs.RunOutput`) is not redone.
+    run with the same settings (its done marker, :class:`plls_bench.rundirs.run_dir.RunOutput`) is not redone.
     Returns the presets whose filmstrip failed."""
     failed, filmed = [], _filmstrip_presets()
     for plan in plans:
@@ -159,7 +159,7 @@ def _legacy_hash(path: Path) -> str | None:
 def export_run_records(runs_dir: str) -> None:
     """Copy the small files of every finished non-smoke run into the committed records folder
     beside the runs dir, so the evidence survives a fresh clone (commit them with git)."""
-    from plls_bench.records.export import export_records
+    from plls_bench.pipeline.record_export import export_records
 
     done = export_records(runs_dir)
     print(f"[reproduce] records: {done.summary()} under {records_dir_for(runs_dir)} "

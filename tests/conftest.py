@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from plls_bench.composition import compose
 from plls_bench.config import Config
+from plls_bench.rundirs.composition import compose
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 EXPERIMENTS = sorted(p.stem for p in (REPO_ROOT / "conf" / "experiment").glob("*.yaml"))

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.runner import execute
-from plls_bench.runs import Run
+from plls_bench.pipeline.execute import execute
+from plls_bench.rundirs.run_dir import Run
 
 VOLATILE = ("wall_s", "perf/")  # timing fields differ between any two runs
 

@@ -1,7 +1,7 @@
 """Synthetic run directories for testing the results collector before the experiments exist.
 
 Every file follows the "What each runner writes" table (docs/architecture.md) and is written through
-:class:`plls_bench.runs.Run`; configs are composed from the shipped yaml (the group choices each
+:class:`plls_bench.rundirs.run_dir.Run`; configs are composed from the shipped yaml (the group choices each
 registry preset stands for, at the given budget), never written by hand.
 """
 from __future__ import annotations
@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from plls_bench.composition import compose
 from plls_bench.config import Config
-from plls_bench.files import read_json
+from plls_bench.core.atomic_files import read_json
+from plls_bench.pipeline.sweeps import load_sweep, sweep_names
 from plls_bench.report.registry import ENTRIES
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, STATUS_DONE, Run, config_hash, run_dir_path
-from plls_bench.sweeps import load_sweep, sweep_names
+from plls_bench.rundirs.composition import compose
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE, STATUS_DONE, Run, config_hash, run_dir_path
 
 # The group choices of each registry preset; shipped presets where they exist (PPO: issue 4, the
 # MountainCar studies: issue 6), the rest until their issues ship them.

@@ -11,15 +11,15 @@ import pytest
 
 from bench.throughput import MEASURES
 from bench.throughput import rate_keys as bench_rate_keys
-from plls_bench import runner_specs
-from plls_bench.config.runners import RUNNER_CHECKS, validate_ppo
-from plls_bench.plan import plan_profile
-from plls_bench.rates import rate_keys
-from plls_bench.records.export import export_records
-from plls_bench.records.layout import PARTIAL_DIR, PARTIAL_MARKER
-from plls_bench.report.load import Runs
-from plls_bench.report.returns import load_curves, x_label
-from plls_bench.runner_specs import RunnerSpec, runner_spec
+from plls_bench.config.runner_checks import RUNNER_CHECKS, validate_ppo
+from plls_bench.pipeline import runner_registry as runner_specs
+from plls_bench.pipeline.plan import plan_profile
+from plls_bench.pipeline.rates import rate_keys
+from plls_bench.pipeline.record_export import export_records
+from plls_bench.pipeline.runner_registry import RunnerSpec, runner_spec
+from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.returns import load_curves, x_label
+from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.train.schedule import Schedule
 from tests.synthetic_runs import finish, make_run, write_eval
 

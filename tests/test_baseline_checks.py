@@ -7,9 +7,17 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.report.claims import read_claims
+from plls_bench.report.claims.claims_table import read_claims
 from plls_bench.report.collect import PAPER_DIR
-from plls_bench.report.verdicts import INCONCLUSIVE, NOT_MADE, NOT_REPRODUCED, REPRODUCED, Estimate, Judged, gate_all
+from plls_bench.report.evidence.verdicts import (
+    INCONCLUSIVE,
+    NOT_MADE,
+    NOT_REPRODUCED,
+    REPRODUCED,
+    Estimate,
+    Judged,
+    gate_all,
+)
 
 DBC_CHECK = "Suite DBC reaches the published pixel range on cheetah-run at 100k env steps (final return)"
 

@@ -1,4 +1,4 @@
-"""The declared decision protocol's pieces (plls_bench/report/protocol.py, docs/verdicts.md) against
+"""The declared decision protocol's pieces (plls_bench/report/evidence/protocol.py, docs/verdicts.md) against
 independent computations, the claims' settings file rejecting a typo by name, and the rows that say
 why they cannot be read: neither arm solves the task; an arm mixes commits and devices."""
 from __future__ import annotations
@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from plls_bench.report.claim_levels import least_trials, median_interval
-from plls_bench.report.claims import read_claims
+from plls_bench.report.claims.claims_table import read_claims
+from plls_bench.report.claims.levels import least_trials, median_interval
 from plls_bench.report.collect import PAPER_DIR
-from plls_bench.report.protocol import (
+from plls_bench.report.evidence.protocol import (
     A_BETTER,
     EQUIVALENT,
     UNDECIDED,

@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, BudgetConfig, ConfigError
-from plls_bench.sweeps import load_sweep
+from plls_bench.pipeline.sweeps import load_sweep
+from plls_bench.rundirs.composition import CONF_DIR, compose
 from tests.conftest import EXPERIMENTS, UNWRITABLE, run_cli, unwritable_path, unwritable_reason
 
 # algo choices run by another runner on the env's state vector (state SAC: the DBC runner)

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.composition import compose
 from plls_bench.data import get_dataset
+from plls_bench.rundirs.composition import compose
 from tests.conftest import compose_preset, in_two_processes
 
 

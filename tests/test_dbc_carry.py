@@ -11,14 +11,14 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.files import read_json
-from plls_bench.records import export
-from plls_bench.records.export import export_records
-from plls_bench.records.layout import PARTIAL_DIR
-from plls_bench.records.restore import seed_from_partial
-from plls_bench.records.snapshot import SNAPSHOT_TRIES, ResumeFiles, checkpoint_snapshot
-from plls_bench.runner import execute
-from plls_bench.runs import Run, run_dir_path
+from plls_bench.core.atomic_files import read_json
+from plls_bench.pipeline import record_export as export
+from plls_bench.pipeline.execute import execute
+from plls_bench.pipeline.record_export import export_records
+from plls_bench.rundirs.record_layout import PARTIAL_DIR
+from plls_bench.rundirs.record_restore import seed_from_partial
+from plls_bench.rundirs.record_snapshot import SNAPSHOT_TRIES, ResumeFiles, checkpoint_snapshot
+from plls_bench.rundirs.run_dir import Run, run_dir_path
 from plls_bench.train import dbc, dbc_state
 from tests.conftest import compose_preset
 from tests.interrupting import interrupted, rows
@@ -58,7 +58,7 @@ def test_an_interrupted_state_sac_trial_continues_from_its_partial_record_in_a_f
     assert any(f.startswith("checkpoints/replay/chunk_") for f in marker["files"]), "the replay travels too"
 
     shutil.rmtree(runs)
-    with caplog.at_level(logging.INFO, logger="plls_bench.runner"):
+    with caplog.at_level(logging.INFO, logger="plls_bench.pipeline.execute"):
         assert execute(cfgs["carried"], dirs["carried"]) == "done"
     assert f"resuming seed=0 from partial record {partial} at iteration 200" in caplog.text
     for stream in ("train", "eval"):

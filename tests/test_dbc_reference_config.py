@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import EnvConfig
-from plls_bench.files import read_json
-from plls_bench.runs import STATUS_DONE, config_hash, stored_identity
+from plls_bench.core.atomic_files import read_json
+from plls_bench.rundirs.composition import CONF_DIR, compose
+from plls_bench.rundirs.run_dir import STATUS_DONE, config_hash, stored_identity
 from tests.conftest import REPO_ROOT, compose_preset
 
 RECORDS = REPO_ROOT / "results" / "records"

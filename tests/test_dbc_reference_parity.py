@@ -1,4 +1,4 @@
-"""The DBC reference-parity harness (``plls_bench.analysis.dbc_reference_parity``) without the
+"""The DBC reference-parity harness (``plls_bench.validation.dbc_reference_parity``) without the
 reference checkout: two suite agents stand in for the two implementations, so the harness must
 call one computation the same and tell a changed coefficient apart at the first update."""
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from baselines.dbc import Batch, DBCAgent
-from plls_bench.analysis import dbc_reference_parity as parity
+from plls_bench.validation import dbc_reference_parity as parity
 from tests.conftest import compose_preset
 
 OBS = (9, 36, 36)  # small frames: the conv trunk sizes its Linear layer from them

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import torch
 
-from plls_bench.artifacts import load_npz
-from plls_bench.files import read_json, read_jsonl
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
+from plls_bench.core.atomic_files import read_json, read_jsonl
+from plls_bench.rundirs.artifacts import load_npz
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE, Run
 from plls_bench.train.dbc import DBCTrainer
 from plls_bench.train.loop import Progress
 from tests.conftest import REPO_ROOT, compose_preset

@@ -9,12 +9,12 @@ import pytest
 import torch
 
 from plls_bench.__main__ import validate_command_line
-from plls_bench.composition import config_from_dict
 from plls_bench.config import ConfigError
-from plls_bench.devices import cpu_model, resolve_device
-from plls_bench.files import read_json
-from plls_bench.runner import execute
-from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
+from plls_bench.core.atomic_files import read_json
+from plls_bench.pipeline.execute import execute
+from plls_bench.rundirs.composition import config_from_dict
+from plls_bench.rundirs.devices import cpu_model, resolve_device
+from plls_bench.rundirs.run_dir import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
 from tests.conftest import compose_preset, run_cli
 
 
@@ -90,7 +90,7 @@ def test_provenance_records_the_device_used(no_gpu: None, runs_dir: Path) -> Non
 
 def test_ppo_checkpoint_from_a_gpu_loads_on_cpu_with_auto(no_gpu: None, saved_as_if_on_gpu, runs_dir: Path) -> None:
     from plls_bench.train import checkpoint
-    from plls_bench.train.agent import build_vec_env, load_trained, new_model
+    from plls_bench.train.ppo_model import build_vec_env, load_trained, new_model
 
     cfg = compose_preset("mountaincar_ppo", runs_dir)
     run = Run(runs_dir / "ppo")
@@ -138,7 +138,7 @@ def test_a_copy_without_git_records_the_commit_its_launcher_names(tmp_path: Path
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """Outside a checkout the sha comes from $PLLS_BENCH_SOURCE_SHA, marked as such and never
     claimed clean; inside one the variable is ignored, so it cannot mask a dirty tree."""
-    from plls_bench.provenance import SOURCE_SHA_VAR, git_state
+    from plls_bench.rundirs.provenance import SOURCE_SHA_VAR, git_state
 
     monkeypatch.delenv(SOURCE_SHA_VAR, raising=False)
     assert git_state(tmp_path) == {"git_sha": None, "git_dirty": None}
@@ -153,7 +153,7 @@ def test_git_state_of_paths_names_the_last_commit_that_changed_them(tmp_path: Pa
     commit that left the collector alone, and dirty only when the collector itself is."""
     import subprocess
 
-    from plls_bench.provenance import git_state
+    from plls_bench.rundirs.provenance import git_state
 
     def git(*args: str) -> str:
         return subprocess.run(["git", "-C", str(tmp_path), "-c", "user.name=t", "-c", "user.email=t@t", *args],

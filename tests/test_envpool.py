@@ -13,8 +13,8 @@ from plls_bench.data import dataset_key
 from plls_bench.data.collect import collect_random_policy
 from plls_bench.envs import make_vec_env
 from plls_bench.envs.envpool_backend import EnvpoolVecEnv, _make_pool
-from plls_bench.evaluate import run_episodes
-from plls_bench.runs import config_hash, variant_name
+from plls_bench.envs.evaluation import run_episodes
+from plls_bench.rundirs.run_dir import config_hash, variant_name
 from tests.conftest import compose_preset
 
 HORIZON = 5  # a short time limit: several episode boundaries in a few steps
@@ -132,8 +132,8 @@ def test_backend_validation_at_small_size(runs_dir: Path, tmp_path: Path) -> Non
     frames for the cross-reconstruction; the report's numbers agree with its per-episode data."""
     import json
 
-    from plls_bench.analysis import backend_validation
     from plls_bench.repr.store import ensure_representations
+    from plls_bench.validation import backends as backend_validation
 
     ensure_representations(compose_preset("carracing_vs", runs_dir, "env.backend=envpool"))
     out = tmp_path / "analysis"
@@ -154,7 +154,7 @@ def test_backend_validation_at_small_size(runs_dir: Path, tmp_path: Path) -> Non
 def test_two_sample_statistics_match_scipy() -> None:
     from scipy import stats
 
-    from plls_bench.analysis.backend_validation import mean_ci, two_sample
+    from plls_bench.validation.backends import mean_ci, two_sample
 
     rng = np.random.default_rng(1)
     a, b = rng.normal(0, 1, 40), rng.normal(0.8, 2, 35)
@@ -173,7 +173,7 @@ def test_collector_reads_a_profiles_envpool_runs_as_the_presets_runs(tmp_path: P
     collector reads those as the preset's runs, and a smoke run in ``default`` does not displace them."""
     import shutil
 
-    from plls_bench.report.load import Runs
+    from plls_bench.report.evidence.load import Runs
     from tests.synthetic_runs import finish, make_run, write_repr
 
     runs = tmp_path / "runs"

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from stable_baselines3.common.vec_env import VecNormalize
 
-from plls_bench.files import read_jsonl
-from plls_bench.runs import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
-from plls_bench.seeding import derive_seeds
+from plls_bench.core.atomic_files import read_jsonl
+from plls_bench.core.seeding import derive_seeds
+from plls_bench.rundirs.run_dir import HASH_EXCLUDED_KEYS, Run, config_dict, config_hash, stable_hash
 from plls_bench.train import checkpoint, normalize, ppo
-from plls_bench.train.agent import build_vec_env, load_trained, new_model
+from plls_bench.train.ppo_model import build_vec_env, load_trained, new_model
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset, run_cli, start_cli
 

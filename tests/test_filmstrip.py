@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.analysis.filmstrip import filmstrip_config, record
-from plls_bench.files import read_json
-from plls_bench.runner import execute
+from plls_bench.core.atomic_files import read_json
+from plls_bench.film.recording import filmstrip_config, record
+from plls_bench.pipeline.execute import execute
 from tests.conftest import REPO_ROOT, compose_preset
 
 
@@ -99,7 +99,7 @@ def test_cli_refuses_what_is_not_a_policy_run(make, message: str, tmp_path: Path
 
 def test_cli_refuses_a_run_without_a_policy_or_checkpoint(tmp_path: Path) -> None:
     study = compose_preset("mountaincar_onestep", tmp_path)
-    from plls_bench.runs import Run, config_hash
+    from plls_bench.rundirs.run_dir import Run, config_hash
 
     Run(tmp_path / "study").prepare(study, config_hash(study))
     ppo = compose_preset("mountaincar_ppo", tmp_path)
@@ -119,8 +119,8 @@ def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: 
     """Which presets are filmed comes from conf/filmstrip; a strip made of the same done run with
     the same settings (its done marker, or an older strip's filmstrip.json) is not made again."""
     from plls_bench import reproduce
-    from plls_bench.plan import plan_profile
-    from plls_bench.runs import Run, config_hash
+    from plls_bench.pipeline.plan import plan_profile
+    from plls_bench.rundirs.run_dir import Run, config_hash
 
     commands: list[list[str]] = []
     monkeypatch.setattr(reproduce.subprocess, "run",
@@ -159,9 +159,9 @@ def test_reproduce_films_the_first_done_trial_that_holds_a_policy(
     """A record exported before records carried checkpoints (seed 0 here) has no policy: the next
     done seed with one is filmed, from its record when its run dir is gone."""
     from plls_bench import reproduce
-    from plls_bench.plan import plan_profile
-    from plls_bench.records.layout import record_path
-    from plls_bench.runs import Run, config_hash
+    from plls_bench.pipeline.plan import plan_profile
+    from plls_bench.rundirs.record_layout import record_path
+    from plls_bench.rundirs.run_dir import Run, config_hash
 
     commands: list[list[str]] = []
     monkeypatch.setattr(reproduce.subprocess, "run",

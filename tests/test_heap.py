@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench import runner
-from plls_bench.heap import glibc_mallopt
-from plls_bench.runs import config_hash
+from plls_bench.core.malloc_retain import glibc_mallopt
+from plls_bench.pipeline import execute as runner
+from plls_bench.rundirs.run_dir import config_hash
 from tests.conftest import REPO_ROOT, compose_preset
 
 # A learner's update in miniature: a small conv net's forward and backward on one batch of
@@ -17,12 +17,12 @@ from tests.conftest import REPO_ROOT, compose_preset
 # at every update; prints the minor page faults of ten updates after ten warm-up ones.
 UPDATES = """
 import resource, sys, torch
-from plls_bench.heap import retain_freed_memory
+from plls_bench.core.malloc_retain import retain_freed_memory
 torch.set_num_threads(1)
 if sys.argv[1] == "retain":
     assert retain_freed_memory()
 else:  # glibc's own 128 KiB mmap threshold, fixed: its dynamic raise makes the default's faults vary by run
-    from plls_bench.heap import glibc_mallopt
+    from plls_bench.core.malloc_retain import glibc_mallopt
     assert glibc_mallopt()(-3, 128 * 1024) == 1  # M_MMAP_THRESHOLD
 torch.manual_seed(0)
 net = torch.nn.Sequential(torch.nn.Conv2d(9, 32, 3, stride=2), torch.nn.ReLU(), torch.nn.Conv2d(32, 32, 3),

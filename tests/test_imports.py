@@ -1,10 +1,11 @@
 """Every module of ``plls_bench`` and ``baselines`` imports on its own, and their imports run only
-down the declared layers (:data:`LAYERS`) and form no cycle.
+down the layers (:data:`LAYERS`, declared by folder) and form no cycle.
 
 Every import statement counts, wherever it stands: at module level, inside a function (a deferred
 import hides a cycle until the function runs), under ``if TYPE_CHECKING:`` (a type-only circle is
 still a circle). Importing ``a.b.c`` from outside ``a.b`` also runs ``a/b/__init__.py``, so it
-counts as importing that package too.
+counts as importing that package too. ``baselines`` is a layer like the others: the suite's
+learners import it, and it imports only the layers below it.
 """
 from __future__ import annotations
 
@@ -19,36 +20,36 @@ from tests.conftest import REPO_ROOT
 
 PACKAGES = ("plls_bench", "baselines")
 Graph = dict[str, dict[str, int]]  # module -> {imported project module: line of its first import}
+Layers = tuple[tuple[str, tuple[str, ...]], ...]
 
-# Bottom up. A module belongs to the layer of its longest entry (the module or a package above it;
-# a bare root package is only itself) and imports only from its own layer and those below.
-LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("foundation", ("plls_bench", "plls_bench.files", "plls_bench.hashing", "plls_bench.seeding", "plls_bench.progress",
-                    "plls_bench.signals", "plls_bench.heap", "plls_bench.metrics", "plls_bench.evaluate")),
-    ("config", ("plls_bench.config",)),
-    ("run dirs", ("plls_bench.devices", "plls_bench.provenance", "plls_bench.runs", "plls_bench.artifacts",
-                  "plls_bench.composition", "plls_bench.sweeps", "plls_bench.overrides", "plls_bench.records",
-                  "plls_bench.manifest")),
-    ("tasks", ("plls_bench.envs", "plls_bench.data", "plls_bench.trunks")),
-    ("representations", ("plls_bench.repr", "plls_bench.latent")),
-    ("baselines", ("baselines", "baselines.dbc")),
-    ("learners", ("plls_bench.train",)),
-    ("analyses", ("plls_bench.analysis",)),
-    ("registry", ("plls_bench.runner_specs",)),
-    ("commands", ("plls_bench.runner", "plls_bench.__main__", "plls_bench.plan", "plls_bench.rates",
-                  "plls_bench.reproduce", "plls_bench.launch",
-                  "plls_bench.resolve", "plls_bench.film", "plls_bench.records.export",
-                  "plls_bench.records.__main__")),
-    ("report", ("plls_bench.report",)),
+# Bottom up, by folder: ``dir/`` holds the modules in dir and below it, ``dir/*.py`` the modules
+# directly in dir. A module belongs to the layer of its longest folder; it imports only from its
+# own layer and those below. Each layer folder's __init__ docstring says the same.
+LAYERS: Layers = (
+    ('core', ('plls_bench/core/', 'plls_bench/__init__.py')),
+    ('config', ('plls_bench/config/',)),
+    ('run dirs', ('plls_bench/rundirs/',)),
+    ('tasks', ('plls_bench/envs/', 'plls_bench/data/')),
+    ('representations', ('plls_bench/repr/',)),
+    ('baselines', ('baselines/',)),
+    ('learners', ('plls_bench/train/',)),
+    ('analyses', ('plls_bench/studies/', 'plls_bench/validation/')),
+    ('pipeline', ('plls_bench/pipeline/',)),
+    ('report evidence', ('plls_bench/report/evidence/',)),
+    ('report figures', ('plls_bench/report/figures/',)),
+    ('report tables', ('plls_bench/report/tables/',)),
+    ('report claims', ('plls_bench/report/claims/',)),
+    ('report', ('plls_bench/report/*.py',)),
+    ('entry points', ('plls_bench/*.py', 'plls_bench/film/')),
 )
 
 
-def module_files() -> dict[str, Path]:
+def module_files(root: Path = REPO_ROOT) -> dict[str, Path]:
     """Dotted module name -> source file, for every module of the packages."""
     found = {}
     for package in PACKAGES:
-        for path in sorted((REPO_ROOT / package).rglob("*.py")):
-            parts = list(path.relative_to(REPO_ROOT).with_suffix("").parts)
+        for path in sorted((root / package).rglob("*.py")):
+            parts = list(path.relative_to(root).with_suffix("").parts)
             if parts[-1] == "__init__":
                 parts.pop()
             found[".".join(parts)] = path
@@ -112,23 +113,30 @@ def find_cycle(graph: dict[str, list[str]] | Graph) -> list[str] | None:
     return None
 
 
-def layer_of(module: str, layers: tuple[tuple[str, tuple[str, ...]], ...] = LAYERS) -> int | None:
-    """Index in ``layers`` of the module's longest entry; None when no entry holds it."""
-    best: tuple[int, int] | None = None  # (entry length, layer index)
+def layer_of(file: str, layers: Layers = LAYERS) -> int | None:
+    """Index in ``layers`` of the longest entry holding ``file`` (a path relative to the root):
+    ``dir/`` its folder or one above, ``dir/*.py`` its folder, or the file itself; None when none does."""
+    folder = file.rsplit("/", 1)[0] + "/"
+    best: tuple[int, int] | None = None  # (folder length, layer index)
     for index, (_, entries) in enumerate(layers):
         for entry in entries:
-            holds = module == entry or (module.startswith(entry + ".") and entry not in PACKAGES)
+            if entry.endswith("*.py"):
+                holds = folder == entry.removesuffix("*.py")
+            else:
+                holds = folder.startswith(entry) if entry.endswith("/") else file == entry
             if holds and (best is None or len(entry) > best[0]):
                 best = (len(entry), index)
     return None if best is None else best[1]
 
 
-def upward_imports(graph: Graph, layers: tuple[tuple[str, tuple[str, ...]], ...] = LAYERS) -> list[str]:
+def upward_imports(graph: Graph, files: dict[str, Path], root: Path = REPO_ROOT,
+                   layers: Layers = LAYERS) -> list[str]:
     """Every import that runs back up the layers, as a readable line."""
+    layer = {m: layer_of(p.relative_to(root).as_posix(), layers) for m, p in files.items()}
     found = []
     for module, edges in sorted(graph.items()):
         for target, line in edges.items():
-            low, high = layer_of(module, layers), layer_of(target, layers)
+            low, high = layer[module], layer[target]
             if low is not None and high is not None and high > low:
                 found.append(f"{module} (line {line}, layer {layers[low][0]}) imports {target} "
                              f"(layer {layers[high][0]})")
@@ -136,29 +144,48 @@ def upward_imports(graph: Graph, layers: tuple[tuple[str, tuple[str, ...]], ...]
 
 
 def test_the_package_imports_run_only_down_the_layers_and_form_no_cycle() -> None:
-    graph = import_graph()
-    assert len(graph) > 50 and "plls_bench.repr.store" in graph["plls_bench.latent"]
-    assert "plls_bench.train.ppo" in graph["plls_bench.runner_specs"], "imports inside functions are read"
-    unplaced = sorted(module for module in graph if layer_of(module) is None)
-    assert not unplaced, f"modules in no layer of LAYERS: {unplaced}"
-    upward = upward_imports(graph)
+    files = module_files()
+    graph = import_graph(files)
+    assert len(graph) > 50 and "plls_bench.repr.store" in graph["plls_bench.repr.latent_wrappers"]
+    assert "plls_bench.train.ppo" in graph["plls_bench.pipeline.runner_registry"], "imports inside functions are read"
+    unplaced = sorted(m for m, p in files.items() if layer_of(p.relative_to(REPO_ROOT).as_posix()) is None)
+    assert not unplaced, f"modules in no folder of LAYERS: {unplaced}"
+    upward = upward_imports(graph, files)
     assert not upward, "imports that run back up the layers:\n" + "\n".join(upward)
     cycle = find_cycle(graph)
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
 
 
+def test_every_layer_folder_says_its_layer_in_its_docstring() -> None:
+    named = {e for _, entries in LAYERS for e in entries if e.endswith(".py") and not e.endswith("*.py")}
+    wrong = []
+    for name, entries in LAYERS:
+        for entry in entries:
+            init = entry.removesuffix("*.py").rstrip("/") + "/__init__.py"
+            if not entry.endswith(("/", "*.py")) or init in named:
+                continue  # a file entry, or a folder whose __init__ is a layer of its own
+            path = REPO_ROOT / init
+            doc = " ".join((ast.get_docstring(ast.parse(path.read_text())) or "").split()) if path.is_file() else ""
+            if f"Layer ``{name}``" not in doc:
+                wrong.append(f"{init} does not say Layer ``{name}``")
+    assert not wrong, "\n".join(wrong)
+
+
 def test_the_checks_find_a_cycle_an_upward_import_and_a_deferred_one(tmp_path: Path) -> None:
     assert find_cycle({"a": ["b"], "b": ["c"], "c": ["a"], "d": ["a"]}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": ["b"], "b": [], "c": ["a", "b"]}) is None
-    layers = (("low", ("p.low",)), ("high", ("p.high",)))
-    (tmp_path / "p").mkdir()
-    (tmp_path / "p" / "__init__.py").write_text("")
-    (tmp_path / "p" / "high.py").write_text("from p.low import x\n")
-    (tmp_path / "p" / "low.py").write_text("def f():\n    from p import high\n")  # deferred, back up
-    graph = import_graph({name: tmp_path / "p" / f"{file}.py" for name, file in
-                          (("p", "__init__"), ("p.high", "high"), ("p.low", "low"))})
-    assert graph["p.low"] == {"p.high": 2} and find_cycle(graph) == ["p.high", "p.low", "p.high"]
-    assert upward_imports(graph, layers) == ["p.low (line 2, layer low) imports p.high (layer high)"]
+    layers = (("low", ("p/low/",)), ("high", ("p/*.py",)))
+    (tmp_path / "p" / "low").mkdir(parents=True)
+    for name, text in (("p/__init__.py", ""), ("p/high.py", "from p.low.x import f\n"),
+                       ("p/low/__init__.py", ""), ("p/low/x.py", "def f():\n    from p import high\n")):
+        (tmp_path / name).write_text(text)  # p/low/x.py: deferred, back up
+    files = {"p": tmp_path / "p/__init__.py", "p.high": tmp_path / "p/high.py",
+             "p.low": tmp_path / "p/low/__init__.py", "p.low.x": tmp_path / "p/low/x.py"}
+    graph = import_graph(files)
+    assert graph["p.low.x"] == {"p.high": 2} and find_cycle(graph) == ["p.high", "p.low.x", "p.high"]
+    assert upward_imports(graph, files, tmp_path, layers) == [
+        "p.low.x (line 2, layer low) imports p.high (layer high)"]
+    assert layer_of("p/low/deeper/y.py", layers) == 0 and layer_of("p/other/z.py", layers) is None
 
 
 def test_the_documented_layout_shows_the_layers_bottom_up() -> None:

@@ -9,11 +9,11 @@ import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from plls_bench.envs import make_vec_env
-from plls_bench.latent import LatentAction, LatentObservation, latent_modules, wrap_latent
 from plls_bench.repr.accounting import parameter_counts
+from plls_bench.repr.latent_wrappers import LatentAction, LatentObservation, latent_modules, wrap_latent
+from plls_bench.repr.pixel_trunk import pixels_to_unit
 from plls_bench.repr.store import ensure_representations
 from plls_bench.repr.train import new_model
-from plls_bench.trunks import pixels_to_unit
 from tests.conftest import compose_preset
 
 
@@ -157,7 +157,7 @@ def test_pl_ls_carracing_env_with_trained_vs_and_va(runs_dir: Path) -> None:
 def test_sb3_ppo_trains_through_the_latent_action_wrapper(runs_dir: Path) -> None:
     """The preset's PPO acts in V_a's 3-D latent space, the env receives the decoded 1-D actions
     inside its bounds, and one update moves the policy."""
-    from plls_bench.train.agent import new_model as new_ppo
+    from plls_bench.train.ppo_model import new_model as new_ppo
 
     cfg = compose_preset("mountaincar_plls_ppo", runs_dir)
     recorder = Recorder(make_vec_env(cfg.env, 2, seed=0))

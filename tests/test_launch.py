@@ -1,4 +1,4 @@
-"""reproduce's launching (plls_bench.launch): the joblib queue refills a core as soon as a trial
+"""reproduce's launching (plls_bench.pipeline.launch): the joblib queue refills a core as soon as a trial
 ends, across presets, and stages keep artifacts before the presets that read them."""
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench import launch
-from plls_bench.launch import run_queue
-from plls_bench.plan import PresetPlan, Trial
+from plls_bench.pipeline import launch
+from plls_bench.pipeline.launch import run_queue
+from plls_bench.pipeline.plan import PresetPlan, Trial
 from plls_bench.reproduce import format_plan
-from plls_bench.runs import STATUS_FAILED, STATUS_STOPPED, Run
+from plls_bench.rundirs.run_dir import STATUS_FAILED, STATUS_STOPPED, Run
 from tests.conftest import REPO_ROOT, compose_preset
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.files import read_jsonl
-from plls_bench.runs import Run
+from plls_bench.core.atomic_files import read_jsonl
+from plls_bench.rundirs.run_dir import Run
 from tests.conftest import run_cli, start_cli
 
 

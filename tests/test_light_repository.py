@@ -11,13 +11,13 @@ from pathlib import Path
 import pytest
 import torch
 
-from plls_bench.evaluate import run_episodes
+from plls_bench.envs.evaluation import run_episodes
 from plls_bench.film import film_run
-from plls_bench.records import export
-from plls_bench.records.export import export_records
-from plls_bench.records.layout import MAX_FILE_BYTES, PARTIAL_DIR, PENDING_DIR, RECORDS_BUDGET_BYTES
-from plls_bench.runner import execute
-from plls_bench.runs import run_dir_path
+from plls_bench.pipeline import record_export as export
+from plls_bench.pipeline.execute import execute
+from plls_bench.pipeline.record_export import export_records
+from plls_bench.rundirs.record_layout import MAX_FILE_BYTES, PARTIAL_DIR, PENDING_DIR, RECORDS_BUDGET_BYTES
+from plls_bench.rundirs.run_dir import run_dir_path
 from plls_bench.train.checkpoint import OPTIMIZER_ENTRY, without_optimizer_state
 from tests.conftest import REPO_ROOT, compose_preset
 from tests.synthetic_runs import make_run
@@ -41,7 +41,7 @@ def tracked_sizes() -> dict[str, int]:
 @pytest.mark.slow
 def test_a_stripped_policy_films_and_evaluates_to_the_returns_of_the_full_checkpoint(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, one_torch_thread: None) -> None:
-    from plls_bench.train.agent import build_vec_env, load_trained
+    from plls_bench.train.ppo_model import build_vec_env, load_trained
 
     monkeypatch.setattr(export, "EXCLUDED_BUDGETS", ())  # the smoke run stands in for a real one
     runs = tmp_path / "results" / "runs"
@@ -108,4 +108,4 @@ def test_no_tracked_file_and_not_the_records_outgrow_their_caps() -> None:
     records = sum(size for name, size in sizes.items() if name.startswith(f"{RECORDS}/"))
     assert 0 < records <= RECORDS_BUDGET_BYTES, (
         f"{RECORDS} weighs {records / 2**20:.1f} MiB, over its budget of {RECORDS_BUDGET_BYTES // 2**20} MiB "
-        "(plls_bench/records/layout.py says what it is sized for)")
+        "(plls_bench/rundirs/record_layout.py says what it is sized for)")

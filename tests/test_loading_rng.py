@@ -8,9 +8,9 @@ from pathlib import Path
 import torch
 
 from plls_bench.config import Config
+from plls_bench.core.seeding import derive_seeds, seed_everything
 from plls_bench.repr.store import ensure_representations, load_representations
-from plls_bench.runs import Run, config_hash
-from plls_bench.seeding import derive_seeds, seed_everything
+from plls_bench.rundirs.run_dir import Run, config_hash
 from plls_bench.train.loop import Progress
 from plls_bench.train.ppo import PPOTrainer
 from tests.conftest import compose_preset
@@ -42,7 +42,7 @@ def test_policy_init_is_the_same_whether_va_was_loaded_zero_one_or_two_times(run
 
 
 def test_every_load_function_leaves_the_global_rng_where_it_was(runs_dir: Path) -> None:
-    from plls_bench.train.agent import load_trained
+    from plls_bench.train.ppo_model import load_trained
 
     cfg = compose_preset("mountaincar_plls_ppo", runs_dir)
     ensure_representations(cfg)

@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
-from plls_bench.metrics import EvalRow, TrainRow
-from plls_bench.runs import Run
+from plls_bench.core.metric_rows import EvalRow, TrainRow
+from plls_bench.rundirs.run_dir import Run
 from plls_bench.train import loop
 from plls_bench.train.loop import Progress, TimeLimitReached
 from tests.conftest import compose_preset

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.manifest import ManifestError, blob_hash, check_copy, main, read_manifest, write_manifest
+from plls_bench.rundirs.manifest import ManifestError, blob_hash, check_copy, main, read_manifest, write_manifest
 
 
 def _git(repo: Path, *args: str) -> str:
@@ -77,9 +77,9 @@ def test_write_refuses_uncommitted_code(checkout: Path) -> None:
 def test_bad_manifest_is_one_clear_error(tmp_path: Path) -> None:
     bad = tmp_path / "MANIFEST"
     bad.write_text("not a manifest\n")
-    result = subprocess.run([sys.executable, "-m", "plls_bench.manifest", "check", str(bad)],
+    result = subprocess.run([sys.executable, "-m", "plls_bench.rundirs.manifest", "check", str(bad)],
                             capture_output=True, text=True)
     assert result.returncode == 2
-    assert result.stderr.strip() == "plls_bench.manifest: not a manifest: its first line must be 'commit <sha>'"
+    assert result.stderr.strip() == "plls_bench.rundirs.manifest: not a manifest: its first line must be 'commit <sha>'"
     missing = main(["check", str(tmp_path / "nowhere")])
     assert missing == 2

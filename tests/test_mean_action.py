@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.analysis.mean_action import clipped_gaussian_mean, main
-from plls_bench.runs import Run, config_hash
+from plls_bench.rundirs.run_dir import Run, config_hash
+from plls_bench.validation.mean_action import clipped_gaussian_mean, main
 from tests.conftest import compose_preset
 
 
@@ -25,7 +25,7 @@ def test_the_clipped_gaussian_mean_matches_sampling(mean: float, std: float) -> 
 
 def test_the_command_traces_a_saved_policy(runs_dir: Path, one_torch_thread: None) -> None:
     from plls_bench.train import checkpoint
-    from plls_bench.train.agent import build_vec_env, new_model
+    from plls_bench.train.ppo_model import build_vec_env, new_model
 
     cfg = compose_preset("mountaincar_ppo", runs_dir)
     run = Run(runs_dir / "ppo")

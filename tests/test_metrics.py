@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.files import read_jsonl
-from plls_bench.metrics import EvalRow, TrainRow, parallel_envs
-from plls_bench.report.trials import Trial
-from plls_bench.runner_specs import iteration_label
+from plls_bench.core.atomic_files import read_jsonl
+from plls_bench.core.metric_rows import EvalRow, TrainRow, parallel_envs
+from plls_bench.pipeline.runner_registry import iteration_label
+from plls_bench.report.evidence.trials import Trial
 from plls_bench.train.loop import Progress
 from tests.synthetic_runs import make_run, write_eval
 

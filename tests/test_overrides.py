@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from plls_bench.config import ConfigError
-from plls_bench.overrides import override_variants
-from plls_bench.plan import plan_profile
+from plls_bench.pipeline.overrides import override_variants
+from plls_bench.pipeline.plan import plan_profile
 from plls_bench.reproduce import parse_args
 from tests.test_reproduce import reproduce
 

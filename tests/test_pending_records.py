@@ -9,14 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.files import read_json, read_jsonl
-from plls_bench.plan import plan_profile
-from plls_bench.records import export
-from plls_bench.records.export import export_records
-from plls_bench.records.export import main as records_main
-from plls_bench.records.layout import PARTIAL_DIR, PENDING_DIR
+from plls_bench.core.atomic_files import read_json, read_jsonl
+from plls_bench.pipeline import record_export as export
+from plls_bench.pipeline.plan import plan_profile
+from plls_bench.pipeline.record_export import export_records
+from plls_bench.pipeline.record_export import main as records_main
 from plls_bench.reproduce import format_plan
-from plls_bench.runs import Run
+from plls_bench.rundirs.record_layout import PARTIAL_DIR, PENDING_DIR
+from plls_bench.rundirs.run_dir import Run
 from tests.synthetic_runs import finish, make_run
 
 KEY = "cheetah_dbc/default/seed=0"

@@ -10,13 +10,13 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.vec_env import DummyVecEnv
 from torch import nn
 
-from plls_bench.composition import compose
 from plls_bench.config import Config
 from plls_bench.envs import make_env
-from plls_bench.evaluate import run_episodes
-from plls_bench.runs import HASH_EXCLUDED_KEYS, config_dict
-from plls_bench.train.agent import build_vec_env
+from plls_bench.envs.evaluation import run_episodes
+from plls_bench.rundirs.composition import compose
+from plls_bench.rundirs.run_dir import HASH_EXCLUDED_KEYS, config_dict
 from plls_bench.train.networks import PaperCNN, SharedMLP, policy_kwargs
+from plls_bench.train.ppo_model import build_vec_env
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset
 

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.files import read_jsonl
-from plls_bench.runner import execute
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
-from plls_bench.train.agent import build_vec_env, load_trained
+from plls_bench.core.atomic_files import read_jsonl
+from plls_bench.pipeline.execute import execute
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE, Run
+from plls_bench.train.ppo_model import build_vec_env, load_trained
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset, run_cli, start_cli
 

@@ -1,4 +1,4 @@
-"""The bf16-vs-fp32 null comparison (plls_bench/analysis/precision_validation.py): its distances
+"""The bf16-vs-fp32 null comparison (plls_bench/validation/precision.py): its distances
 and pass rule on synthetic outputs, its input checks, and one end-to-end run at a tiny size."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.analysis.precision_validation import (
+from plls_bench.validation.precision import (
     DBC_MEASURES,
     PPO_MEASURES,
     compare,
@@ -91,7 +91,7 @@ def test_end_to_end_at_a_tiny_size(tmp_path: Path, one_torch_thread: None) -> No
     main(["--orders", "2", "--ppo-envs", "2", "--ppo-steps", "8", "--ppo-epochs", "1", "--ppo-batch", "8",
           "--dbc-transitions", "20", "--dbc-updates", "2", "--dbc-batch", "8", "--heldout", "8", "--out", str(out)])
     text, report = out.read_text(), json.loads(out.with_suffix(".json").read_text())
-    assert "Command: `python -m plls_bench.analysis.precision_validation --orders 2" in text
+    assert "Command: `python -m plls_bench.validation.precision --orders 2" in text
     assert "## PPO CNN (`carracing_ppo`): bf16" in text and "## DBC (`cheetah_dbc`): bf16" in text
     assert "smaller than the issue's" in text and "bf16 on this CPU:" in text
     for key, measures in (("ppo", PPO_MEASURES), ("dbc", DBC_MEASURES)):

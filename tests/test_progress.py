@@ -5,12 +5,12 @@ import logging
 
 import pytest
 
-from plls_bench.progress import progress_bar
+from plls_bench.core.progress_bars import progress_bar
 
 
 def test_a_bar_off_a_terminal_logs_plain_lines_not_redraws(caplog: pytest.LogCaptureFixture) -> None:
     # pytest captures stderr, so it is not a terminal here
-    with caplog.at_level(logging.INFO, logger="plls_bench.progress"):
+    with caplog.at_level(logging.INFO, logger="plls_bench.core.progress_bars"):
         with progress_bar(total=1000, desc="demo", unit="step") as bar:
             for _ in range(1000):
                 bar.update(1)
@@ -21,7 +21,7 @@ def test_a_bar_off_a_terminal_logs_plain_lines_not_redraws(caplog: pytest.LogCap
 
 
 def test_a_disabled_bar_logs_nothing(caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.INFO, logger="plls_bench.progress"):
+    with caplog.at_level(logging.INFO, logger="plls_bench.core.progress_bars"):
         for _ in progress_bar(range(10), desc="off", disable=True):
             pass
     assert not caplog.records

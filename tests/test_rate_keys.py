@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from bench.throughput import MEASURES, rate_keys
-from plls_bench.plan import plan_profile
-from plls_bench.rates import rate_suffix
-from plls_bench.runner_specs import SPECS
+from plls_bench.pipeline.plan import plan_profile
+from plls_bench.pipeline.rates import rate_suffix
+from plls_bench.pipeline.runner_registry import SPECS
 from tests.conftest import compose_preset
 
 TRAIN, EVAL = "train/carracing_ppo", "eval/carracing_ppo"

@@ -10,16 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.files import atomic_write_json, read_json
+from plls_bench.core.atomic_files import atomic_write_json, read_json
 from plls_bench.film import film_run
-from plls_bench.plan import plan_profile
-from plls_bench.records import export
-from plls_bench.records.export import export_records
-from plls_bench.records.layout import PARTIAL_DIR
-from plls_bench.report.load import Runs
+from plls_bench.pipeline import record_export as export
+from plls_bench.pipeline.execute import execute
+from plls_bench.pipeline.plan import plan_profile
+from plls_bench.pipeline.record_export import export_records
+from plls_bench.report.evidence.load import Runs
 from plls_bench.reproduce import format_plan
-from plls_bench.runner import execute
-from plls_bench.runs import Run, config_hash, run_dir_path
+from plls_bench.rundirs.record_layout import PARTIAL_DIR
+from plls_bench.rundirs.run_dir import Run, config_hash, run_dir_path
 from plls_bench.train import ppo
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset
@@ -90,7 +90,7 @@ def test_a_partial_record_is_all_or_nothing(tmp_path: Path, monkeypatch: pytest.
 def test_a_recorded_policy_is_filmed_and_evaluated_with_an_empty_runs_dir(
         tmp_path: Path, all_budgets: None, one_torch_thread: None, caplog: pytest.LogCaptureFixture) -> None:
     from plls_bench.repr.store import load_representations
-    from plls_bench.train.agent import build_vec_env, load_trained
+    from plls_bench.train.ppo_model import build_vec_env, load_trained
 
     runs = tmp_path / "results" / "runs"
     cfg = compose_preset("mountaincar_plls_ppo", runs)  # builds the dataset and V_a, then trains
@@ -144,7 +144,7 @@ def test_an_interrupted_ppo_trial_continues_from_its_partial_record_in_a_fresh_r
     shutil.rmtree(runs)
     assert Runs(runs, runs.parent / "records").experiment("mountaincar_ppo").trials == [], \
         "partial records are not read"
-    with caplog.at_level(logging.INFO, logger="plls_bench.runner"):
+    with caplog.at_level(logging.INFO, logger="plls_bench.pipeline.execute"):
         assert execute(cfgs["carried"], dirs["carried"]) == "done"
     assert f"resuming seed=0 from partial record {partial} at iteration 4" in caplog.text
 

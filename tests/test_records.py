@@ -9,12 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plls_bench.records import export, records_dir_for
-from plls_bench.records.export import export_records, record_files
-from plls_bench.records.export import main as records_main
+from plls_bench.pipeline import record_export as export
+from plls_bench.pipeline.record_export import export_records, record_files
+from plls_bench.pipeline.record_export import main as records_main
 from plls_bench.report.collect import render_all
-from plls_bench.report.load import Runs
-from plls_bench.runs import PARAMS_FILE
+from plls_bench.report.evidence.load import Runs
+from plls_bench.rundirs.record_layout import records_dir_for
+from plls_bench.rundirs.run_dir import PARAMS_FILE
 from tests.synthetic_runs import build_all, fill, finish, make_run
 
 TABLES = ("claims", "stats", "table3")

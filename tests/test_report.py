@@ -14,11 +14,11 @@ import pytest
 from scipy import stats
 
 from plls_bench.report import BY_ID, ENTRIES, render_all
-from plls_bench.report.base import Options
-from plls_bench.report.claims import verdict
+from plls_bench.report.claims.claims_table import verdict
 from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
-from plls_bench.report.load import Runs
-from plls_bench.report.plot import DPI, TITLE_CHARS_PER_INCH, new_figure, suptitle
+from plls_bench.report.evidence.entry_types import Options
+from plls_bench.report.evidence.load import Runs
+from plls_bench.report.figures.plot import DPI, TITLE_CHARS_PER_INCH, new_figure, suptitle
 from tests.conftest import REPO_ROOT
 from tests.synthetic_runs import ITERATIONS, build_all, build_hand_runs, finish, make_run, write_eval, write_npz
 
@@ -228,7 +228,7 @@ def test_every_registry_id_renders_from_synthetic_runs(tmp_path: Path) -> None:
 
 
 def test_output_check_catches_a_wrong_size_and_a_blank_image(tmp_path: Path) -> None:
-    from plls_bench.report.plot import save_figure
+    from plls_bench.report.figures.plot import save_figure
 
     (tmp_path / "runs").mkdir()
     statuses = render_all(tmp_path / "runs", tmp_path / "out", only=["fig18", "fig21"])  # no runs: placeholders

@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 
 from plls_bench.report import BY_ID, render_all
-from plls_bench.report.base import Options
 from plls_bench.report.collect import PAPER_DIR
-from plls_bench.report.load import Runs
-from plls_bench.report.matched import MIN_TRIALS
+from plls_bench.report.evidence.entry_types import Options
+from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.matched import MIN_TRIALS
 from tests.synthetic_runs import finish, make_run, write_eval, write_params
 
 FIG18 = "PL-LS with PPO beats PPO on CarRacing"

@@ -10,7 +10,7 @@ import pytest
 import scipy.stats
 from rliable import metrics
 
-from plls_bench.report.stats import (
+from plls_bench.report.evidence.stats import (
     _mean_and_iqm,
     _poi,
     ahead_from,
@@ -22,7 +22,7 @@ from plls_bench.report.stats import (
     smooth,
     summarise,
 )
-from plls_bench.report.tables import Table, fmt, fmt_ci, tex
+from plls_bench.report.evidence.table_formats import Table, fmt, fmt_ci, tex
 
 
 def test_smooth_is_a_trailing_mean() -> None:
@@ -156,7 +156,7 @@ def test_number_formats_and_latex_escaping() -> None:
 def test_plateau_epoch_is_the_first_epoch_changing_less_than_1_percent_over_3() -> None:
     import numpy as np
 
-    from plls_bench.report.fig_curves import plateau_epoch
+    from plls_bench.report.figures.curves import plateau_epoch
 
     losses = np.array([100.0, 50, 30, 20, 19.9, 19.8, 19.7, 19.69])  # epochs 1..8
     # index 6: |19.7 - 20| = 0.3 > 0.2; index 7: |19.69 - 19.9| = 0.21 > 0.199: still changing

@@ -12,7 +12,7 @@ import pytest
 
 from plls_bench.report import render_all
 from plls_bench.report.collect import IdStatus, verify_outputs
-from plls_bench.report.variants import variant_of
+from plls_bench.report.evidence.variant_arms import variant_of
 from tests.synthetic_runs import finish, make_run, write_eval
 from tests.test_reproduce import reproduce
 

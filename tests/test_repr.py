@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 import torch
 
+from plls_bench.core.atomic_files import atomic_write_json, read_json, read_jsonl
 from plls_bench.data import get_dataset
-from plls_bench.files import atomic_write_json, read_json, read_jsonl
+from plls_bench.pipeline.execute import execute
 from plls_bench.repr.keys import sha256
 from plls_bench.repr.store import (
     CheckpointError,
@@ -20,8 +21,7 @@ from plls_bench.repr.store import (
     load_weights,
 )
 from plls_bench.repr.train import new_model
-from plls_bench.runner import execute
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE
 from tests.conftest import compose_preset, in_two_processes, run_cli
 
 EPOCH_KEYS = {"model", "epoch", "train_loss", "train_recon_mse", "train_kl", "val_loss", "val_recon_mse", "val_kl"}
@@ -187,8 +187,8 @@ def test_a_killed_training_resumes_to_the_same_weights(runs_dir: Path, monkeypat
 def test_an_incomplete_resume_file_restarts_training_from_scratch(runs_dir: Path, caplog) -> None:
     reference = state_of(ensure_va(compose_preset("mountaincar_va", runs_dir / "a")))
     cfg = compose_preset("mountaincar_va", runs_dir / "b")
-    from plls_bench.artifacts import artifact_path
     from plls_bench.repr.keys import repr_key
+    from plls_bench.rundirs.artifacts import artifact_path
 
     final = artifact_path(cfg.runs_dir, "repr_action", repr_key(cfg, "action"))
     torn = final.parent / f".{final.name}.partial" / "resume.pt"

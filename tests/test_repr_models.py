@@ -6,10 +6,10 @@ import torch
 from torch import nn
 from torch.distributions import Normal, kl_divergence
 
-from plls_bench.composition import compose
 from plls_bench.config import ConfigError
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
 from plls_bench.repr.models import ActionVAE, StateVAE
+from plls_bench.rundirs.composition import compose
 
 # (task, action dim, N_e) from Secs. 5.1-5.3
 TASKS = [("mountaincar", 1, 3), ("carracing", 3, 32), ("cheetah", 6, 12)]

@@ -9,8 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.analysis.filmstrip import filmstrip_config, record
-from plls_bench.composition import compose
+from plls_bench.film.recording import filmstrip_config, record
 from plls_bench.repr.keys import repr_path
 from plls_bench.repr.store import (
     MissingArtifact,
@@ -19,7 +18,8 @@ from plls_bench.repr.store import (
     find_artifact,
     load_representations,
 )
-from plls_bench.train.agent import build_vec_env
+from plls_bench.rundirs.composition import compose
+from plls_bench.train.ppo_model import build_vec_env
 from tests.conftest import compose_preset
 
 

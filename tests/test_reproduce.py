@@ -11,10 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.plan import list_presets, plan_profile
-from plls_bench.rates import rate_machines
+from plls_bench.pipeline.execute import execute
+from plls_bench.pipeline.plan import list_presets, plan_profile
+from plls_bench.pipeline.rates import rate_machines
 from plls_bench.reproduce import records_line
-from plls_bench.runner import execute
 from tests.conftest import REPO_ROOT, UNWRITABLE, compose_preset, unwritable_path, unwritable_reason
 
 MC = ["mountaincar_data", "mountaincar_va", "mountaincar_ppo"]

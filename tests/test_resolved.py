@@ -5,10 +5,10 @@ import difflib
 
 import yaml
 
-from plls_bench import resolve
-from plls_bench.composition import compose
 from plls_bench.config import BUDGET_NAMES
-from plls_bench.runs import config_dict
+from plls_bench.pipeline import resolved_configs as resolve
+from plls_bench.rundirs.composition import compose
+from plls_bench.rundirs.run_dir import config_dict
 
 
 def test_committed_resolved_configs_match_the_composed_presets() -> None:

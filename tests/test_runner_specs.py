@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.composition import filmstrip_config
 from plls_bench.config import ENV_NAMES, Config, ConfigError
-from plls_bench.config.runners import RUNNER_CHECKS
+from plls_bench.config.runner_checks import RUNNER_CHECKS
+from plls_bench.pipeline.runner_registry import RUNNERS, SPECS, filming_runners, runner_spec
 from plls_bench.reproduce import filmed_presets
-from plls_bench.runner_specs import RUNNERS, SPECS, filming_runners, runner_spec
+from plls_bench.rundirs.composition import filmstrip_config
 from tests.conftest import REPO_ROOT, compose_preset
 
 
@@ -78,7 +78,7 @@ def test_an_unregistered_runner_is_refused_naming_the_key(tmp_path: Path) -> Non
 def test_filmed_presets_are_declared_for_runners_with_a_policy(tmp_path: Path) -> None:
     """conf/filmstrip/<env>.yaml lists presets of that env whose runner's spec can load a policy,
     and exactly the presets the report's filmstrip figures show (Figs 11, 19, 22)."""
-    from plls_bench.report import fig_images
+    from plls_bench.report.figures import images as fig_images
     from plls_bench.report.registry import ENTRIES
 
     for env in ENV_NAMES:
@@ -91,8 +91,8 @@ def test_filmed_presets_are_declared_for_runners_with_a_policy(tmp_path: Path) -
 
 
 def test_the_registry_and_config_validation_import_no_simulator_or_torch() -> None:
-    code = ("import sys; from plls_bench.composition import compose; "
-            "import plls_bench.runner_specs; import plls_bench.reproduce; "
+    code = ("import sys; from plls_bench.rundirs.composition import compose; "
+            "import plls_bench.pipeline.runner_registry; import plls_bench.reproduce; "
             "compose(['+experiment=cheetah_plls_dbc']); "
             "print(sorted({m.split('.')[0] for m in sys.modules} & "
             "{'torch', 'gymnasium', 'dm_control', 'mujoco', 'cv2', 'stable_baselines3', 'matplotlib'}))")

@@ -8,10 +8,17 @@ import numpy as np
 import pytest
 import yaml
 
-from plls_bench.composition import CONF_DIR, recorded_config
-from plls_bench.files import atomic_write_json, jsonl_line, read_jsonl
-from plls_bench.runner import execute
-from plls_bench.runs import VARIANT_EXCLUDED_KEYS, Run, config_hash, iter_run_dirs, unhashed_keys, variant_name
+from plls_bench.core.atomic_files import atomic_write_json, jsonl_line, read_jsonl
+from plls_bench.pipeline.execute import execute
+from plls_bench.rundirs.composition import CONF_DIR, recorded_config
+from plls_bench.rundirs.run_dir import (
+    VARIANT_EXCLUDED_KEYS,
+    Run,
+    config_hash,
+    iter_run_dirs,
+    unhashed_keys,
+    variant_name,
+)
 from tests.conftest import compose_preset
 
 
@@ -65,7 +72,7 @@ def test_a_run_output_is_made_only_once_every_file_and_its_marker_are_written(tm
         path.write_bytes(data)
 
     # bytes directly, and under atomic_write_json
-    for module in ("plls_bench.runs", "plls_bench.files"):
+    for module in ("plls_bench.rundirs.run_dir", "plls_bench.core.atomic_files"):
         monkeypatch.setattr(f"{module}.atomic_write_bytes", torn)
     with pytest.raises(KeyboardInterrupt):
         strip.write("h2", {"frames.npz": b"new", "filmstrip.json": {"interval": 8}})
@@ -146,15 +153,15 @@ def test_failed_run_records_the_error(runs_dir: Path, monkeypatch: pytest.Monkey
 
 
 def test_the_variant_name_leaves_out_exactly_the_keys_that_change_no_result() -> None:
-    """Hydra reads exclude_keys from yaml, so it cannot import runs.py: the two must agree."""
+    """Hydra reads exclude_keys from yaml, so it cannot import rundirs/run_dir.py: the two must agree."""
     hydra_cfg = yaml.safe_load((CONF_DIR / "config.yaml").read_text())["hydra"]
     excluded = hydra_cfg["job"]["config"]["override_dirname"]["exclude_keys"]
     want = {*VARIANT_EXCLUDED_KEYS, *unhashed_keys()}
     assert len(excluded) == len(set(excluded)) and set(excluded) == want, (
         "conf/config.yaml hydra.job.config.override_dirname.exclude_keys must list "
-        f"{sorted(want)} (plls_bench/runs.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); "
+        f"{sorted(want)} (plls_bench/rundirs/run_dir.py: VARIANT_EXCLUDED_KEYS and unhashed_keys()); "
         f"got {sorted(excluded)}. "
-        "A key that changes no result goes into runs.py's HASH_* tables first, then into that list.")
+        "A key that changes no result goes into rundirs/run_dir.py's HASH_* tables first, then into that list.")
 
 
 def test_a_recorded_config_reads_where_the_run_lives_now(tmp_path: Path) -> None:

@@ -12,8 +12,8 @@ import torch
 
 from baselines.dbc import Batch, DBCAgent
 from plls_bench.config import ConfigError
-from plls_bench.files import read_json, read_jsonl
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, config_hash
+from plls_bench.core.atomic_files import read_json, read_jsonl
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE, config_hash
 from tests.conftest import REPO_ROOT, compose_preset
 
 STATE_DIM = 17  # cheetah-run: position (8) + velocity (9)

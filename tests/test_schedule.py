@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.plan import plan_profile
-from plls_bench.runs import Run
+from plls_bench.pipeline.plan import plan_profile
+from plls_bench.rundirs.run_dir import Run
 from plls_bench.train.dbc import DBCTrainer
 from plls_bench.train.loop import Progress
 from plls_bench.train.schedule import Schedule
@@ -55,7 +55,7 @@ def test_the_dry_run_costs_the_evaluations_of_the_schedule(runs_dir: Path) -> No
 def test_a_resumed_dbc_trial_counts_its_episodes_from_the_resume(runs_dir: Path) -> None:
     """A resumed DBC run starts a fresh training episode, so its episode ends fall every episode
     after the resume point, not on the fresh run's grid; evaluations stay on theirs."""
-    from plls_bench.plan import _checkpoints_left
+    from plls_bench.pipeline.plan import _checkpoints_left
 
     cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
     schedule = Schedule.of(cfg)
@@ -89,7 +89,7 @@ def test_the_dry_run_estimates_each_trials_first_checkpoint(runs_dir: Path) -> N
 def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir: Path) -> None:
     """PL-LS's first trial collects the dataset and trains V_a before any PPO iteration: all of it
     comes before its first checkpoint; the second trial reuses them."""
-    from plls_bench.rates import rate_keys
+    from plls_bench.pipeline.rates import rate_keys
 
     cfg = compose_preset("mountaincar_plls_ppo", runs_dir, "budget=quick")
     rates = {key: 1.0 for key in rate_keys(cfg).values()}
@@ -104,7 +104,7 @@ def test_a_first_checkpoint_comes_after_the_artifacts_the_trial_builds(runs_dir:
 
 def test_a_runner_that_runs_to_its_end_first_stops_at_its_end(runs_dir: Path) -> None:
     """Collection has no checkpoint: the launch may start it only with time left for all of it."""
-    from plls_bench.rates import rate_keys
+    from plls_bench.pipeline.rates import rate_keys
 
     cfg = compose_preset("mountaincar_data", runs_dir, "budget=quick")
     rates = {key: 1.0 for key in rate_keys(cfg).values()}
@@ -119,9 +119,9 @@ def test_a_dbc_trial_resuming_before_its_burst_first_stops_after_it(runs_dir: Pa
     holds the burst of 1000 updates, 1000 of its 49,000 iterations' learning left (50,000 agent steps
     at the launcher's action repeat 2), on top of one interval's share. A fresh trial's first interval
     (an episode of random acting, 500 agent steps) does not hold it."""
-    from plls_bench.plan import _burst_share
-    from plls_bench.records.layout import PARTIAL_DIR, PARTIAL_MARKER
-    from plls_bench.runs import config_hash
+    from plls_bench.pipeline.plan import _burst_share
+    from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
+    from plls_bench.rundirs.run_dir import config_hash
 
     cfg = compose_preset("cheetah_dbc", runs_dir, "budget=quick")
     assert [_burst_share(cfg, at) for at in (0, 500, 1001)] == [0.0, 0.0, 0.0]

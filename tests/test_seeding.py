@@ -1,12 +1,12 @@
 """Seed derivation is pinned: recorded runs and artifact keys hold these numbers, so a change to
-:func:`plls_bench.seeding.derived_seed` that moves any of them would change results and hashes."""
+:func:`plls_bench.core.seeding.derived_seed` that moves any of them would change results and hashes."""
 from __future__ import annotations
 
 import numpy as np
 
-from plls_bench.plan import preset_config
+from plls_bench.core.seeding import Seeds, derive_seeds, derived_seed, episode_seeds, sub_seed
+from plls_bench.pipeline.plan import preset_config
 from plls_bench.repr.keys import training_seed
-from plls_bench.seeding import Seeds, derive_seeds, derived_seed, episode_seeds, sub_seed
 
 SEEDS_0 = Seeds(data=3757552657, train=673228719, eval=3241444873)  # trial 0, data_seed 0
 

@@ -1,4 +1,4 @@
-"""Signals held back over checkpoint writes (plls_bench/signals.py): a scheduler's signal that lands
+"""Signals held back over checkpoint writes (plls_bench/core/signals.py): a scheduler's signal that lands
 inside torch.save runs its handler after the write, and the checkpoint is whole."""
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from plls_bench.runs import Run
-from plls_bench.signals import signals_deferred
+from plls_bench.core.signals import signals_deferred
+from plls_bench.rundirs.run_dir import Run
 from plls_bench.train import loop
 from plls_bench.train.loop import Progress
 from tests.conftest import compose_preset

@@ -9,9 +9,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from plls_bench.analysis import measures
-from plls_bench.analysis.mountaincar import MountainCar
-from plls_bench.analysis.studies import (
+from plls_bench.config import ConfigError
+from plls_bench.core.atomic_files import read_json
+from plls_bench.pipeline.execute import execute
+from plls_bench.report import render_all
+from plls_bench.report.collect import verify_outputs
+from plls_bench.repr.store import ensure_representations
+from plls_bench.repr.train import new_model
+from plls_bench.rundirs.composition import compose
+from plls_bench.studies import measures
+from plls_bench.studies.latent_space import (
     STUDIES,
     encode,
     reconstruction,
@@ -20,14 +27,7 @@ from plls_bench.analysis.studies import (
     study_rngs,
     tracking_steps,
 )
-from plls_bench.composition import compose
-from plls_bench.config import ConfigError
-from plls_bench.files import read_json
-from plls_bench.report import render_all
-from plls_bench.report.collect import verify_outputs
-from plls_bench.repr.store import ensure_representations
-from plls_bench.repr.train import new_model
-from plls_bench.runner import execute
+from plls_bench.studies.mountaincar import MountainCar
 from tests.conftest import compose_preset, run_cli
 from tests.synthetic_runs import finish, make_run
 

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 from plls_bench.config import ConfigError
-from plls_bench.plan import plan_profile
+from plls_bench.pipeline.execute import execute
+from plls_bench.pipeline.plan import plan_profile
 from plls_bench.reproduce import parse_args
-from plls_bench.runner import execute
-from plls_bench.runs import Run, config_hash
+from plls_bench.rundirs.run_dir import Run, config_hash
 from plls_bench.train.loop import TimeLimit
 from plls_bench.train.schedule import Schedule
 from tests.conftest import compose_preset

@@ -1,4 +1,4 @@
-"""The conv trunks' memory layout and precision (plls_bench/trunks.py).
+"""The conv trunks' memory layout and precision (plls_bench/repr/pixel_trunk.py).
 
 channels_last must give the contiguous layout's outputs and gradients (within 1e-5: only float
 summation order changes) and share its state_dicts; bf16 must stay inside the trunks (heads,
@@ -19,13 +19,13 @@ import torch
 from torch import nn
 
 from baselines.dbc.encoder import ConvTrunk
-from plls_bench.composition import config_from_dict
-from plls_bench.files import read_json
+from plls_bench.core.atomic_files import read_json
 from plls_bench.repr.keys import repr_key, repr_path
 from plls_bench.repr.models import StateVAE
-from plls_bench.runs import Run, config_hash, stored_identity, variant_name
+from plls_bench.repr.pixel_trunk import PixelTrunk, memory_format
+from plls_bench.rundirs.composition import config_from_dict
+from plls_bench.rundirs.run_dir import Run, config_hash, stored_identity, variant_name
 from plls_bench.train.networks import ChannelsLastPolicy, PaperCNN, policy_kwargs
-from plls_bench.trunks import PixelTrunk, memory_format
 from tests.conftest import REPO_ROOT, compose_preset
 
 FRAMES = gym.spaces.Box(0, 255, (3, 96, 96), np.uint8)

@@ -8,10 +8,10 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-from plls_bench.latent import LatentObservation
+from plls_bench.repr.latent_wrappers import LatentObservation
 from plls_bench.repr.train import new_model as new_vae
-from plls_bench.train.agent import build_vec_env, new_model
 from plls_bench.train.networks import ChannelsLastPolicy, policy_kwargs
+from plls_bench.train.ppo_model import build_vec_env, new_model
 from tests.conftest import compose_preset
 
 LEGACY = gym.spaces.Box(0.0, 1.0, (3, 96, 96), np.float32)  # what the envs returned before

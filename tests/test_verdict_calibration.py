@@ -1,5 +1,5 @@
 """The verdict rules keep their error rates (issue 63, docs/verdicts.md): simulated arms run through
-the protocol's own decision functions (:func:`plls_bench.report.protocol.decisions`, which
+the protocol's own decision functions (:func:`plls_bench.report.evidence.protocol.decisions`, which
 :func:`compare_arms` shares its tests and rule with) and Holm's correction.
 
 - Identical arms (normal, heavy-tailed t with 2 degrees of freedom, and a mixture where 20% of the
@@ -20,8 +20,17 @@ import math
 import numpy as np
 import pytest
 
-from plls_bench.report import protocol
-from plls_bench.report.protocol import A_BETTER, B_BETTER, EQUIVALENT, TOO_FEW, decisions, holm, planned_n, welch_power
+from plls_bench.report.evidence import protocol
+from plls_bench.report.evidence.protocol import (
+    A_BETTER,
+    B_BETTER,
+    EQUIVALENT,
+    TOO_FEW,
+    decisions,
+    holm,
+    planned_n,
+    welch_power,
+)
 
 ALPHA = protocol.ALPHA
 SIMULATIONS = 2000

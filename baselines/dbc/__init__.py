@@ -6,7 +6,7 @@ Modules: ``hyperparameters`` (what the agent reads of its settings: a Protocol, 
 schema of the suite is imported here), ``encoder`` (conv/MLP trunk -> Linear -> LayerNorm),
 ``models`` (actor, twin critic, transition model, reward decoder), ``bisim`` (the representation
 losses), ``agent`` (updates and checkpoint state), ``replay`` (frames stored once, stacks rebuilt on
-sampling), ``oracle``. Of the suite, only the shared conv trunk (``plls_bench.trunks``) is used.
+sampling), ``oracle``. Of the suite, only the shared conv trunk (``plls_bench.repr.pixel_trunk``) is used.
 """
 from baselines.dbc.agent import Batch, DBCAgent
 from baselines.dbc.replay import FrameReplay

@@ -11,7 +11,7 @@ from __future__ import annotations
 import torch
 import torch.nn as nn
 
-from plls_bench.trunks import PixelTrunk, to_channels_last
+from plls_bench.repr.pixel_trunk import PixelTrunk, to_channels_last
 
 
 def weight_init(module: nn.Module) -> None:

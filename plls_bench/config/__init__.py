@@ -7,8 +7,11 @@ point does before it creates a run directory or starts any compute. Errors name 
 
 Validation checks what a config *is*, on any machine: recorded configs are validated again when
 they are read back (reports, filmstrips). Whether this machine *has* the device a config asks for
-is checked where a command is about to compute (:func:`plls_bench.devices.require_device`, from the
+is checked where a command is about to compute (:func:`plls_bench.rundirs.devices.require_device`, from the
 CLI and the runners), so a run recorded with ``device=cuda`` stays readable on a CPU-only machine.
+
+Layer ``config`` of tests/test_imports.py: imports only from itself and the layers below it
+(``core``); no layer below imports it.
 """
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ from plls_bench.config.learning import (
     DBCConfig,
     PPOConfig,
 )
-from plls_bench.config.runners import RUNNER_CHECKS
+from plls_bench.config.runner_checks import RUNNER_CHECKS
 from plls_bench.config.tasks import (
     DATA_POLICIES,
     ENV_NAMES,
@@ -59,9 +62,9 @@ __all__ = ["ALGO_NAMES", "BUDGET_NAMES", "DATA_POLICIES", "DBC_ENCODERS", "DEVIC
            "FilmstripConfig", "PPOConfig", "ReprConfig", "StateReprConfig", "StudyConfig", "Validated", "check",
            "check_choice", "check_fraction", "check_nonnegative", "check_positive", "register_configs", "to_config"]
 
-# How the conv trunks compute (plls_bench/trunks.py): fp32, or bf16 autocast around the trunks only.
+# How the conv trunks compute (plls_bench/repr/pixel_trunk.py): fp32, or bf16 autocast around the trunks only.
 PRECISIONS = ("fp32", "bf16")
-# Where torch computes; plls_bench.devices resolves the setting (auto: a CUDA GPU when torch sees one).
+# Where torch computes; plls_bench.rundirs.devices resolves the setting (auto: a CUDA GPU when torch sees one).
 DEVICES = ("cpu", "cuda", "auto")
 
 
@@ -102,7 +105,7 @@ class Config(Validated):
         check("/" not in self.variant, "variant", f"must not contain '/', got {self.variant!r}")
         if self.repr.state.kind == "vae":
             self._validate_state_vae()
-        RUNNER_CHECKS[self.runner](self)  # the runner's own checks (plls_bench/config/runners.py)
+        RUNNER_CHECKS[self.runner](self)  # the runner's own checks (plls_bench/config/runner_checks.py)
 
     def _validate_state_vae(self) -> None:
         """V_s needs stored single frames, and its decoder must rebuild the frame's exact size."""

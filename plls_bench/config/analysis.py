@@ -7,7 +7,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from plls_bench.config.checks import Validated, check, check_choice, check_positive
-from plls_bench.hashing import stable_hash
+from plls_bench.core.hashing import stable_hash
 
 # --------------------------------------------------------------------------- studies
 STUDY_NAMES = ("multistep", "onestep", "generalisation")

@@ -1,4 +1,8 @@
-"""Random-policy datasets: content-addressed artifacts shared by all trials of a task."""
+"""Random-policy datasets: content-addressed artifacts shared by all trials of a task.
+
+Layer ``tasks`` of tests/test_imports.py: imports only from itself and the layers below it
+(``core`` up to ``run dirs``); no layer below imports it.
+"""
 from __future__ import annotations
 
 import time
@@ -8,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from plls_bench.artifacts import Artifact, get_or_build, load_npz, save_npz
 from plls_bench.config import Config
-from plls_bench.files import atomic_write_json, read_json
-from plls_bench.runs import Run
-from plls_bench.seeding import derive_seeds
+from plls_bench.core.atomic_files import atomic_write_json, read_json
+from plls_bench.core.seeding import derive_seeds
+from plls_bench.rundirs.artifacts import Artifact, get_or_build, load_npz, save_npz
+from plls_bench.rundirs.run_dir import Run
 
 DATA_FORMAT = 1  # bump when the stored layout changes: old artifacts are then never reused
 # Env settings that do not change the collected data (parallelism) stay out of the key.

@@ -16,9 +16,9 @@ from scipy import special
 from tqdm.auto import tqdm
 
 from plls_bench.config import EnvConfig
+from plls_bench.core.progress_bars import progress_bar
+from plls_bench.core.seeding import episode_seeds
 from plls_bench.envs import make_env
-from plls_bench.progress import progress_bar
-from plls_bench.seeding import episode_seeds
 
 
 @dataclass

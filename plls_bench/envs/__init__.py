@@ -4,6 +4,9 @@ Pixel observations are channel-first uint8 everywhere in the suite: CarRacing ``
 Cheetah ``(3 * frame_stack, 84, 84)`` (as the DBC reference). The networks divide by 255 (SB3's
 image convention for PPO's policy, V_s's batches, DBC's encoder), so they compute on the paper's
 "three floating point values between 0 and 1" (Sec. 5.2) while rollouts and data keep uint8.
+
+Layer ``tasks`` of tests/test_imports.py: imports only from itself and the layers below it
+(``core`` up to ``run dirs``); no layer below imports it.
 """
 from __future__ import annotations
 

@@ -14,7 +14,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from plls_bench.envs.gl import ensure_mujoco_gl
+from plls_bench.envs.mujoco_gl import ensure_mujoco_gl
 
 _SETTOTALMASS = "compiler attribute 'settotalmass' is deprecated"
 

@@ -13,10 +13,10 @@ import shlex
 import sys
 from pathlib import Path
 
-from plls_bench.records import records_dir_for
 from plls_bench.report.collect import PAPER_DIR, ReportError, render_all
+from plls_bench.report.evidence.returns import DEFAULT_X_AXIS, X_AXES
 from plls_bench.report.registry import ENTRIES, builder_name
-from plls_bench.report.returns import DEFAULT_X_AXIS, X_AXES
+from plls_bench.rundirs.record_layout import records_dir_for
 
 
 def print_registry() -> None:

@@ -12,17 +12,17 @@ from pathlib import Path
 
 import numpy as np
 
-from plls_bench.files import atomic_write_bytes, atomic_write_json, read_json
-from plls_bench.progress import progress_bar
-from plls_bench.report.base import Entry, IdStatus, Options, Output
-from plls_bench.report.claims import read_claims
+from plls_bench.core.atomic_files import atomic_write_bytes, atomic_write_json, read_json
+from plls_bench.core.progress_bars import progress_bar
+from plls_bench.report.claims.claims_table import read_claims
+from plls_bench.report.evidence.entry_types import Entry, IdStatus, Options, Output
+from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.returns import X_AXES
+from plls_bench.report.evidence.table_formats import PAPER_COLUMNS, read_paper
+from plls_bench.report.figures.plot import DPI, save_figure
 from plls_bench.report.headline import write_front_page
-from plls_bench.report.load import Runs
-from plls_bench.report.plot import DPI, save_figure
 from plls_bench.report.readme import write_readme
 from plls_bench.report.registry import BY_ID, ENTRIES
-from plls_bench.report.returns import X_AXES
-from plls_bench.report.tables import PAPER_COLUMNS, read_paper
 
 log = logging.getLogger(__name__)
 PAPER_DIR = Path(__file__).resolve().parents[2] / "results" / "paper"

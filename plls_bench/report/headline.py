@@ -8,7 +8,7 @@ import csv
 from collections import Counter
 from pathlib import Path
 
-from plls_bench.files import atomic_write_bytes
+from plls_bench.core.atomic_files import atomic_write_bytes
 
 REPO = Path(__file__).resolve().parents[2]
 FRONT_PAGE = REPO / "README.md"

@@ -9,11 +9,11 @@ from pathlib import Path
 from typing import Any
 
 from plls_bench.config import BUDGET_NAMES
-from plls_bench.files import atomic_write_bytes, read_json
-from plls_bench.provenance import git_state
-from plls_bench.report.base import IdStatus
-from plls_bench.report.tables import plural
-from plls_bench.runs import iter_run_dirs
+from plls_bench.core.atomic_files import atomic_write_bytes, read_json
+from plls_bench.report.evidence.entry_types import IdStatus
+from plls_bench.report.evidence.table_formats import plural
+from plls_bench.rundirs.provenance import git_state
+from plls_bench.rundirs.run_dir import iter_run_dirs
 
 BUDGET_ORDER = BUDGET_NAMES  # ordered from the smallest profile up
 # What the collector's output depends on: its code (and the modules it reads runs with) and the

@@ -5,20 +5,17 @@ from __future__ import annotations
 
 from functools import partial
 
-from plls_bench.report import (
-    claims,
-    comparisons,
-    efficiency,
-    fig_arch,
-    fig_curves,
-    fig_images,
-    fig_latent,
-    fig_sweep,
-    power,
-    variants_table,
-)
-from plls_bench.report.base import BASE_BLUE, VS_GREEN, Entry, Source
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE
+from plls_bench.report.claims import claims_table as claims
+from plls_bench.report.claims import power
+from plls_bench.report.evidence.entry_types import BASE_BLUE, VS_GREEN, Entry, Source
+from plls_bench.report.figures import architecture as fig_arch
+from plls_bench.report.figures import curves as fig_curves
+from plls_bench.report.figures import images as fig_images
+from plls_bench.report.figures import latent_space as fig_latent
+from plls_bench.report.figures import sweep as fig_sweep
+from plls_bench.report.tables import comparisons, efficiency
+from plls_bench.report.tables import variants as variants_table
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE
 
 S = Source
 EVAL = "metrics/eval.jsonl"

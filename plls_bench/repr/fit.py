@@ -18,11 +18,11 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from plls_bench.files import atomic_write_bytes
-from plls_bench.progress import progress_bar
+from plls_bench.core.atomic_files import atomic_write_bytes
+from plls_bench.core.progress_bars import progress_bar
+from plls_bench.core.signals import signals_deferred
 from plls_bench.repr.models import VAE
-from plls_bench.signals import signals_deferred
-from plls_bench.trunks import pixels_to_unit
+from plls_bench.repr.pixel_trunk import pixels_to_unit
 
 log = logging.getLogger(__name__)
 

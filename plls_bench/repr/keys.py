@@ -10,11 +10,11 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from plls_bench.artifacts import artifact_path
-from plls_bench.composition import CONF_DIR, compose
 from plls_bench.config import ActionReprConfig, Config, ConfigError, StateReprConfig
+from plls_bench.core.seeding import derive_seeds, derived_seed
 from plls_bench.data import dataset_key
-from plls_bench.seeding import derive_seeds, derived_seed
+from plls_bench.rundirs.artifacts import artifact_path
+from plls_bench.rundirs.composition import CONF_DIR, compose
 
 REPR_FORMAT = 1  # bump when training or the stored layout changes: old artifacts are never reused
 KINDS = {"action": "repr_action", "state": "repr_state"}

@@ -12,7 +12,7 @@ import torch
 from torch import Tensor, nn
 
 from plls_bench.config import ActionReprConfig, StateReprConfig
-from plls_bench.trunks import PixelTrunk, to_channels_last
+from plls_bench.repr.pixel_trunk import PixelTrunk, to_channels_last
 
 _ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "elu": nn.ELU, "tanh": nn.Tanh}
 

@@ -28,12 +28,9 @@ from pathlib import Path
 import torch
 from filelock import FileLock
 
-from plls_bench.artifacts import Artifact, discard, get_or_build, is_built
 from plls_bench.config import Config
-from plls_bench.devices import resolve_device
-from plls_bench.files import read_json
-from plls_bench.records.layout import recorded_artifact
-from plls_bench.records.restore import copy_artifact_files
+from plls_bench.core.atomic_files import read_json
+from plls_bench.core.seeding import quiet_rng
 from plls_bench.repr.keys import (
     CONFIG_KEYS,
     FILES,
@@ -47,7 +44,10 @@ from plls_bench.repr.keys import (
 )
 from plls_bench.repr.models import ActionVAE, StateVAE
 from plls_bench.repr.train import build, new_model
-from plls_bench.seeding import quiet_rng
+from plls_bench.rundirs.artifacts import Artifact, discard, get_or_build, is_built
+from plls_bench.rundirs.devices import resolve_device
+from plls_bench.rundirs.record_layout import recorded_artifact
+from plls_bench.rundirs.record_restore import copy_artifact_files
 
 log = logging.getLogger(__name__)
 

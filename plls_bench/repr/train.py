@@ -14,17 +14,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from plls_bench.artifacts import save_npz
 from plls_bench.config import Config
+from plls_bench.core.atomic_files import atomic_write_bytes, atomic_write_json
+from plls_bench.core.signals import signals_deferred
 from plls_bench.data import RandomPolicyData, get_dataset
-from plls_bench.devices import resolve_device
 from plls_bench.envs import make_env
-from plls_bench.files import atomic_write_bytes, atomic_write_json
 from plls_bench.repr.fit import Split, batches, evaluate, fit, mean_reconstruction_mse, torch_threads
 from plls_bench.repr.keys import FILES, model_config, repr_path, sha256, training_seed
 from plls_bench.repr.models import VAE, ActionVAE, StateVAE
 from plls_bench.repr.samples import action_samples, state_samples
-from plls_bench.signals import signals_deferred
+from plls_bench.rundirs.artifacts import save_npz
+from plls_bench.rundirs.devices import resolve_device
 
 
 def action_dim(cfg: Config) -> int:
@@ -124,8 +124,8 @@ def _mean_predictor_mse(train: Split, test: Split, chunk: int = 1000) -> float:
 
 def _write(out: Path, model: VAE, history: list[dict], samples: dict[str, np.ndarray], test: dict) -> None:
     buffer = io.BytesIO()
-    # contiguous: the stored weights do not depend on the layout the model ran in (plls_bench/trunks.py)
-    with signals_deferred():  # see plls_bench/signals.py: a signal inside torch.save fails the job
+    # contiguous: the stored weights do not depend on the layout the model ran in (plls_bench/repr/pixel_trunk.py)
+    with signals_deferred():  # see plls_bench/core/signals.py: a signal inside torch.save fails the job
         torch.save({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, buffer)
     atomic_write_bytes(out / "model.pt", buffer.getvalue())
     atomic_write_json(out / "history.json", history)

@@ -1,2 +1,6 @@
 """Policy learning: the ``ppo`` runner on stable-baselines3 (the paper's networks, checkpoints) and the
-``dbc`` runner."""
+``dbc`` runner.
+
+Layer ``learners`` of tests/test_imports.py: imports only from itself and the layers below it
+(``core`` up to ``baselines``); no layer below imports it.
+"""

@@ -26,8 +26,8 @@ import numpy as np
 import torch
 from stable_baselines3 import PPO
 
-from plls_bench.files import atomic_write_bytes, read_json
-from plls_bench.runs import Run
+from plls_bench.core.atomic_files import atomic_write_bytes, read_json
+from plls_bench.rundirs.run_dir import Run
 from plls_bench.train.loop import Progress
 
 LATEST = "latest.json"

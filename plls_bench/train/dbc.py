@@ -26,20 +26,20 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.config import Config
-from plls_bench.devices import resolve_device
+from plls_bench.core.metric_rows import EvalRow, TrainRow
+from plls_bench.core.seeding import derive_seeds, derived_seed
 from plls_bench.envs import make_vec_env
-from plls_bench.evaluate import run_episodes
-from plls_bench.latent import wrap_latent
-from plls_bench.metrics import EvalRow, TrainRow
+from plls_bench.envs.evaluation import run_episodes
+from plls_bench.repr.latent_wrappers import wrap_latent
 from plls_bench.repr.store import Representations, ensure_representations
-from plls_bench.runs import Run
-from plls_bench.seeding import derive_seeds, derived_seed
+from plls_bench.rundirs.devices import resolve_device
+from plls_bench.rundirs.run_dir import Run
 from plls_bench.train import loop
 from plls_bench.train.dbc_accounting import write_accounting
 from plls_bench.train.dbc_state import CHECKPOINT, POLICY, load_checkpoint, load_trained_agent, save_checkpoint
 from plls_bench.train.loop import Progress
-from plls_bench.train.policy import TrainedPolicy
 from plls_bench.train.schedule import Schedule
+from plls_bench.train.trained_policy import TrainedPolicy
 
 log = logging.getLogger(__name__)
 

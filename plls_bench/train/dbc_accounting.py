@@ -20,9 +20,9 @@ import torch.nn as nn
 from stable_baselines3.common.vec_env import VecEnv
 
 from baselines.dbc import DBCAgent
-from plls_bench.latent import latent_modules
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
+from plls_bench.repr.latent_wrappers import latent_modules
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE, Run
 
 
 class _OneInput(nn.Module):

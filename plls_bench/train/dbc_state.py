@@ -23,16 +23,16 @@ import torch
 from gymnasium.spaces import Box
 
 from baselines.dbc import DBCAgent, FrameReplay
-from plls_bench.artifacts import load_npz, save_npz
-from plls_bench.composition import recorded_config
 from plls_bench.config import Config
-from plls_bench.devices import resolve_device
+from plls_bench.core.atomic_files import read_json
+from plls_bench.core.seeding import quiet_rng
 from plls_bench.envs import make_vec_env
-from plls_bench.files import read_json
-from plls_bench.latent import wrap_latent
+from plls_bench.repr.latent_wrappers import wrap_latent
 from plls_bench.repr.store import Representations, load_representations
-from plls_bench.runs import Run
-from plls_bench.seeding import quiet_rng
+from plls_bench.rundirs.artifacts import load_npz, save_npz
+from plls_bench.rundirs.composition import recorded_config
+from plls_bench.rundirs.devices import resolve_device
+from plls_bench.rundirs.run_dir import Run
 from plls_bench.train.checkpoint import missing_checkpoint, progress_record, restored_progress
 from plls_bench.train.loop import Progress
 

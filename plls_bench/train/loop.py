@@ -9,7 +9,7 @@
     (before the first interval too, where the trainer foretells a long one)
 
 A trainer builds its env, agent, buffer and logger once in ``setup`` and supplies the steps; this
-module owns their order, resume, the wall clock, the metric rows (:mod:`plls_bench.metrics`) and
+module owns their order, resume, the wall clock, the metric rows (:mod:`plls_bench.core.metric_rows`) and
 the progress bar. A checkpoint at iteration k covers every metric row with ``iteration <= k``: a
 restarted run drops the newer rows and redoes those iterations, so the history ends complete and
 without duplicates.
@@ -32,10 +32,10 @@ from typing import Any, Protocol
 from tqdm import tqdm  # the type of the bar progress_bar returns
 
 from plls_bench.config import Config
-from plls_bench.metrics import EvalRow, TrainRow
-from plls_bench.progress import progress_bar
-from plls_bench.runs import Run
-from plls_bench.signals import signals_deferred
+from plls_bench.core.metric_rows import EvalRow, TrainRow
+from plls_bench.core.progress_bars import progress_bar
+from plls_bench.core.signals import signals_deferred
+from plls_bench.rundirs.run_dir import Run
 
 
 @dataclass(frozen=True)

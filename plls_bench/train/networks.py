@@ -20,7 +20,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
 from plls_bench.config import PPOConfig
-from plls_bench.trunks import PixelTrunk, to_channels_last
+from plls_bench.repr.pixel_trunk import PixelTrunk, to_channels_last
 
 ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU}
 
@@ -75,7 +75,7 @@ class PaperCNN(BaseFeaturesExtractor):
 
 
 class ChannelsLastPolicy(ActorCriticPolicy):
-    """SB3's ``ActorCriticPolicy`` with its conv weights in channels_last (:mod:`plls_bench.trunks`),
+    """SB3's ``ActorCriticPolicy`` with its conv weights in channels_last (:mod:`plls_bench.repr.pixel_trunk`),
     converted after SB3's orthogonal init: ``nn.init.orthogonal_`` writes through ``.view``, which a
     channels_last weight refuses. A policy without convs is unchanged."""
 

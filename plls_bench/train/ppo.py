@@ -19,17 +19,17 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import VecEnv
 
 from plls_bench.config import Config
-from plls_bench.devices import resolve_device
-from plls_bench.evaluate import run_episodes
-from plls_bench.metrics import EvalRow, TrainRow
+from plls_bench.core.metric_rows import EvalRow, TrainRow
+from plls_bench.core.seeding import derive_seeds, sub_seed
+from plls_bench.envs.evaluation import run_episodes
 from plls_bench.repr.accounting import architecture_summary, parameter_counts
-from plls_bench.repr.runner import model_test_metrics
+from plls_bench.repr.build_run import model_test_metrics
 from plls_bench.repr.store import ensure_representations
-from plls_bench.runs import ARCHITECTURE_FILE, PARAMS_FILE, Run
-from plls_bench.seeding import derive_seeds, sub_seed
+from plls_bench.rundirs.devices import resolve_device
+from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE, Run
 from plls_bench.train import checkpoint, loop, normalize
-from plls_bench.train.agent import accounting, build_vec_env, load_model, new_model, sb3_metrics
 from plls_bench.train.loop import Progress
+from plls_bench.train.ppo_model import accounting, build_vec_env, load_model, new_model, sb3_metrics
 from plls_bench.train.schedule import Schedule
 
 _EVAL_SAMPLING = 1  # sub-stream of the eval seed for stochastic test actions

@@ -1,5 +1,5 @@
 """A policy learner's budget in its own iterations, and when it evaluates: the one schedule the
-trainers run (``train/ppo.py``, ``train/dbc.py``) and the dry run costs (``plan.py``).
+trainers run (``train/ppo.py``, ``train/dbc.py``) and the dry run costs (``pipeline/plan.py``).
 
 One iteration is the algorithm's ``steps_per_iteration`` agent steps (PPO: a rollout of
 ``n_envs x n_steps``; DBC: one agent step), each ``env.action_repeat`` env steps (frames). Budgets

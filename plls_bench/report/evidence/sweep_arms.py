@@ -1,0 +1,71 @@
+"""A declared sweep's arms as the collector reads them (``conf/sweep/<name>.yaml``,
+:mod:`plls_bench.pipeline.sweeps`): one arm per value, the preset's own runs for its own value and the
+override's variant for every other, and what each arm is scored on.
+
+Scores are per trial on the evaluations that every finished trial of every arm reaches
+(:func:`plls_bench.report.evidence.matched.matched`): the final return (the largest common x) and the mean
+return over the common evaluations. V_a's test MSE per arm comes from the arm's own runs'
+``metrics/repr_test.json`` (written by the ``ppo`` runner for the models it trained on), one value
+per distinct artifact.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from plls_bench.pipeline.sweeps import Sweep
+from plls_bench.report.evidence.load import DEFAULT_VARIANT, Runs
+from plls_bench.report.evidence.matched import Matched, matched
+from plls_bench.report.evidence.returns import Curves, load_curves
+from plls_bench.report.evidence.trials import Experiment
+
+# V_a's test MSE under both readings the suite reports (docs/architecture.md, "What each runner writes").
+MSE_READINGS = {"test_mse": "z sampled", "test_mse_posterior_mean": "decode(mu)"}
+
+
+@dataclass
+class Arm:
+    """One value of the sweep: its runs (``exp``, variant ``default`` for the preset's own value)
+    and their return curves."""
+
+    value: Any
+    exp: Experiment
+    curves: Curves
+
+    @property
+    def label(self) -> str:
+        return str(self.value)
+
+
+def sweep_arms(runs: Runs, sweep: Sweep, x_axis: str) -> list[Arm]:
+    """Every value's arm, in the sweep's order (arms without runs have ``curves.n == 0``)."""
+    arms = []
+    for value in sweep.values:
+        exp = runs.experiment(sweep.preset, sweep.arm_variant(value) or DEFAULT_VARIANT)
+        arms.append(Arm(value, exp, load_curves(runs, exp, f"{sweep.key}={value}", x_axis)))
+    return arms
+
+
+def scores(pair: Matched) -> dict[str, list[np.ndarray]]:
+    """Per arm, ``final`` ``(n_i,)`` (return at the last common x) and ``mean`` ``(n_i,)`` (mean
+    return over the common evaluations) of each finished trial; ``pair.values[i]`` is ``(n_i, P)``."""
+    return {"final": [v[:, -1] for v in pair.values], "mean": [v.mean(axis=1) for v in pair.values]}
+
+
+def matched_arms(runs: Runs, arms: list[Arm]) -> Matched:
+    """The arms' finished trials on the evaluations all of them reach (raises NotJudged)."""
+    return matched(*(a.curves for a in arms), runs=runs)
+
+
+def va_mse(runs: Runs, arm: Arm, field: str) -> list[float]:
+    """V_a's ``field`` (a key of :data:`MSE_READINGS`) per distinct trained V_a of ``arm``'s trials
+    (trials sharing an artifact count once); a trial without the file is a gap."""
+    values: dict[str, float] = {}
+    for trial in arm.exp.trials:
+        entry = (runs.json(arm.exp, trial, "metrics/repr_test.json") or {}).get("action")
+        if isinstance(entry, dict) and isinstance(entry.get(field), (int, float)) and math.isfinite(entry[field]):
+            values.setdefault(str(entry.get("artifact", trial.seed)), float(entry[field]))
+    return list(values.values())

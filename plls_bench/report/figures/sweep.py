@@ -1,0 +1,86 @@
+"""A declared sweep as a figure (the N_e sweep of Sec. 5.2): final return and mean return over the
+curve against the swept value, mean over trials with the 95% bootstrap CI of the mean, each trial
+as a dot; beside them V_a's test MSE against the value under both readings (z sampled, decode(mu)).
+Returns are compared at the evaluations every finished trial of every arm reaches."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from plls_bench.pipeline.sweeps import load_sweep
+from plls_bench.report.evidence.entry_types import BASE_BLUE, PLLS_RED, Entry, Options, Output
+from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.matched import NotJudged
+from plls_bench.report.evidence.stats import summarise
+from plls_bench.report.evidence.sweep_arms import MSE_READINGS, Arm, matched_arms, scores, sweep_arms, va_mse
+from plls_bench.report.figures.plot import empty_output, new_figure, suptitle
+
+PANELS = {"final": "final return", "mean": "mean return over the curve"}
+
+
+def _row(panel: str, series: str, arm: Arm, values: np.ndarray, at: str) -> dict:
+    """One point of the figure: mean of ``values`` ``(n,)`` with its CI (NaN below 2 values)."""
+    s = summarise(values)
+    return {"panel": panel, "series": series, "value": arm.value, "variant": arm.exp.variant, "n": s.n,
+            "mean": s.mean, "ci_low": s.mean_ci[0], "ci_high": s.mean_ci[1], "at": at,
+            "points": " ".join(f"{v:.6g}" for v in values)}
+
+
+def sweep_data(runs: Runs, arms: list[Arm]) -> pd.DataFrame:
+    """The tidy data: one row per (panel, series, value)."""
+    rows = []
+    done = [a for a in arms if a.curves.finished_seeds().any()]
+    try:
+        pair = matched_arms(runs, done) if done else None
+    except NotJudged as err:  # no x every arm reaches: returns are not drawn, MSE still is
+        runs.gap(done[0].exp, None, f"sweep returns not drawn: {err}")
+        pair = None
+    if pair is not None:
+        for panel, per_arm in scores(pair).items():
+            rows += [_row(panel, "return", arm, v, pair.at) for arm, v in zip(done, per_arm)]
+    for field, reading in MSE_READINGS.items():
+        rows += [_row("va_test_mse", reading, arm, np.array(v), "") for arm in arms if (v := va_mse(runs, arm, field))]
+    return pd.DataFrame(rows)
+
+
+def _draw(ax, frame: pd.DataFrame, color: str, label: str, base: float) -> None:
+    x = frame["value"].astype(float).to_numpy()
+    mean = frame["mean"].to_numpy()
+    low = np.where(np.isnan(frame["ci_low"]), mean, frame["ci_low"])
+    high = np.where(np.isnan(frame["ci_high"]), mean, frame["ci_high"])
+    ax.errorbar(x, mean, yerr=[mean - low, high - mean], color=color, marker="o", capsize=3, lw=1.4, label=label)
+    for value, points in zip(x, frame["points"]):
+        ys = [float(p) for p in points.split()]
+        ax.scatter([value] * len(ys), ys, color=color, s=10, alpha=0.4, lw=0)
+    ax.axvline(base, color="grey", ls=":", lw=1.0)
+
+
+def sweep_figure(runs: Runs, entry: Entry, opts: Options, *, sweep: str) -> Output:
+    """Three panels over the sweep's values: final return, mean return, V_a test MSE."""
+    spec = load_sweep(sweep)
+    arms = sweep_arms(runs, spec, opts.x_axis)
+    name = spec.key.rsplit(".", 1)[-1]
+    trials = {f"{name}={a.value}": a.curves.n for a in arms}
+    budgets = sorted({b for a in arms if (b := a.exp.budget)})
+    title = f"{entry.title} (budget {'/'.join(budgets) or 'none'})"
+    data = sweep_data(runs, arms)
+    if data.empty:
+        return empty_output(runs, entry, title)
+    fig = new_figure(entry.size)
+    axes = fig.subplots(1, 3)
+    for ax, (panel, ylabel) in zip(axes, [*PANELS.items(), ("va_test_mse", "V_a test MSE")]):
+        part = data[data["panel"] == panel]
+        for (series, frame), color in zip(part.groupby("series", sort=False), (PLLS_RED, BASE_BLUE)):
+            _draw(ax, frame, color, series, float(spec.base))
+        ax.set_xscale("log", base=2)
+        ax.set_xticks([float(v) for v in spec.values], [str(v) for v in spec.values])
+        ax.set_xlabel(f"{name} (dotted: the preset's {spec.base})")
+        ax.set_ylabel(ylabel)
+        if panel == "va_test_mse" and not part.empty and (part["mean"] > 0).all():
+            ax.set_yscale("log")
+            ax.legend(fontsize=8)
+        at = part["at"].iloc[0] if not part.empty else ""
+        ax.set_title(f"{ylabel}{', ' + at if at else ''}" if not part.empty else f"{ylabel}: no data", fontsize=8)
+        ax.grid(alpha=0.3)
+    suptitle(fig, entry.ref, title, trials)
+    return Output(fig, data, trials=trials)
