@@ -4,8 +4,8 @@ down the layers (:data:`LAYERS`, declared by folder) and form no cycle.
 Every import statement counts, wherever it stands: at module level, inside a function (a deferred
 import hides a cycle until the function runs), under ``if TYPE_CHECKING:`` (a type-only circle is
 still a circle). Importing ``a.b.c`` from outside ``a.b`` also runs ``a/b/__init__.py``, so it
-counts as importing that package too. ``baselines`` is a layer like the others: the suite's
-learners import it, and it imports only the layers below it.
+counts as importing that package too. ``baselines`` is the bottom layer: the suite's
+learners import it, and it imports nothing of the suite (the suite hands it its conv stack).
 """
 from __future__ import annotations
 
@@ -26,12 +26,12 @@ Layers = tuple[tuple[str, tuple[str, ...]], ...]
 # directly in dir. A module belongs to the layer of its longest folder; it imports only from its
 # own layer and those below. Each layer folder's __init__ docstring says the same.
 LAYERS: Layers = (
+    ('baselines', ('baselines/',)),
     ('core', ('plls_bench/core/', 'plls_bench/__init__.py')),
     ('config', ('plls_bench/config/',)),
     ('run dirs', ('plls_bench/rundirs/',)),
     ('tasks', ('plls_bench/envs/', 'plls_bench/data/')),
     ('representations', ('plls_bench/repr/',)),
-    ('baselines', ('baselines/',)),
     ('learners', ('plls_bench/train/',)),
     ('analyses', ('plls_bench/studies/', 'plls_bench/validation/')),
     ('pipeline', ('plls_bench/pipeline/',)),

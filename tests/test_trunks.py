@@ -22,7 +22,7 @@ from baselines.dbc.encoder import ConvTrunk
 from plls_bench.core.atomic_files import read_json
 from plls_bench.repr.keys import repr_key, repr_path
 from plls_bench.repr.models import StateVAE
-from plls_bench.repr.pixel_trunk import PixelTrunk, memory_format
+from plls_bench.repr.pixel_trunk import PixelTrunk, conv_stack, memory_format
 from plls_bench.rundirs.composition import config_from_dict
 from plls_bench.rundirs.run_dir import Run, config_hash, stored_identity, variant_name
 from plls_bench.train.networks import ChannelsLastPolicy, PaperCNN, policy_kwargs
@@ -48,7 +48,7 @@ def dbc_trunk(runs_dir: Path, *overrides: str) -> ConvTrunk:
     cfg = compose_preset("cheetah_dbc", runs_dir, *overrides)
     torch.manual_seed(0)
     frames = (3 * cfg.env.frame_stack, cfg.env.image_size, cfg.env.image_size)
-    return ConvTrunk(frames, cfg.algo.dbc.num_layers, cfg.algo.dbc.num_filters, precision=cfg.precision)
+    return ConvTrunk(frames, cfg.algo.dbc.num_layers, cfg.algo.dbc.num_filters, conv_stack(cfg.precision))
 
 
 Forward = Callable[[nn.Module, torch.dtype], torch.Tensor]

@@ -6,7 +6,8 @@ Modules: ``hyperparameters`` (what the agent reads of its settings: a Protocol, 
 schema of the suite is imported here), ``encoder`` (conv/MLP trunk -> Linear -> LayerNorm),
 ``models`` (actor, twin critic, transition model, reward decoder), ``bisim`` (the representation
 losses), ``agent`` (updates and checkpoint state), ``replay`` (frames stored once, stacks rebuilt on
-sampling), ``oracle``. Of the suite, only the shared conv trunk (``plls_bench.repr.pixel_trunk``) is used.
+sampling), ``oracle``. It imports nothing of the suite: the suite hands the pixel encoder its conv
+stack (``DBCAgent(..., conv_stack=...)``, :func:`plls_bench.repr.pixel_trunk.conv_stack`).
 """
 from baselines.dbc.agent import Batch, DBCAgent
 from baselines.dbc.replay import FrameReplay

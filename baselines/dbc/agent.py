@@ -23,7 +23,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from baselines.dbc.bisim import bisimulation_loss, latent_batch_std, reward_loss, transition_loss
-from baselines.dbc.encoder import Encoder, IdentityEncoder, make_trunk, weight_init
+from baselines.dbc.encoder import ConvStack, Encoder, IdentityEncoder, make_trunk, plain_conv_stack, weight_init
 from baselines.dbc.hyperparameters import Hyperparameters
 from baselines.dbc.models import Actor, Critic, TransitionModel, reward_decoder
 
@@ -49,10 +49,11 @@ def soft_update(net: nn.Module, target: nn.Module, tau: float) -> None:
 class DBCAgent:
     """Actor, twin critic (+ target), transition model and reward decoder (``encoder=bisim``), with
     their optimisers.
-    ``precision`` (the run's ``cfg.precision``) applies to the pixel encoder's conv trunk only."""
+    ``conv_stack`` builds what runs the pixel encoder's conv layers (default: a plain ``Sequential``;
+    the suite passes its channels_last trunk in the run's precision)."""
 
     def __init__(self, obs_shape: tuple[int, ...], action_dim: int, cfg: Hyperparameters,
-                 device: torch.device | str = "cpu", precision: str = "fp32") -> None:
+                 device: torch.device | str = "cpu", conv_stack: ConvStack = plain_conv_stack) -> None:
         self.cfg, self.device = cfg, torch.device(device)
         # bisim: DBC's learned encoder and its losses; critic: the same encoder trained by the critic
         # alone (pixel SAC, the reference's --agent baseline); identity: state SAC (no encoder)
@@ -60,7 +61,7 @@ class DBCAgent:
         self.has_encoder = cfg.encoder != "identity"
         encoder: Callable[[], nn.Module] = partial(IdentityEncoder, obs_shape)
         if self.has_encoder:
-            trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim, precision)
+            trunk = make_trunk(obs_shape, cfg.num_layers, cfg.num_filters, cfg.hidden_dim, conv_stack)
             # the actor shares the critic's trunk (the reference ties the conv weights)
             encoder = partial(Encoder, trunk, cfg.encoder_feature_dim)
         self.critic = Critic(encoder(), action_dim, cfg.hidden_dim)

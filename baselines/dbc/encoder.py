@@ -8,10 +8,21 @@ stack (the reference ties the weights); each has its own Linear + LayerNorm head
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import torch
 import torch.nn as nn
 
-from plls_bench.repr.pixel_trunk import PixelTrunk, to_channels_last
+# Builds the module that runs the pixel encoder's conv layers. The default is a plain Sequential
+# (fp32, the contiguous layout); a caller passes its own to choose layout and precision (the suite:
+# plls_bench.repr.pixel_trunk.conv_stack), so this package imports nothing of the suite.
+ConvStack = Callable[[Sequence[nn.Module]], nn.Module]
+
+
+def plain_conv_stack(layers: Sequence[nn.Module]) -> nn.Module:
+    """The conv layers as they are, in a ``Sequential`` (its ``state_dict`` keys are every conv
+    stack's: ``convs.0.weight``, ...)."""
+    return nn.Sequential(*layers)
 
 
 def weight_init(module: nn.Module) -> None:
@@ -29,18 +40,18 @@ def weight_init(module: nn.Module) -> None:
 
 class ConvTrunk(nn.Module):
     """``(B, C, H, W)`` uint8 or float pixels in [0, 255] -> ``(B, F)`` flattened conv features,
-    float32; the convs are a channels_last :class:`PixelTrunk` run in ``precision`` (the run's)."""
+    float32; the convs run in the module ``conv_stack`` builds of them (layout and precision are
+    the caller's)."""
 
     def __init__(self, obs_shape: tuple[int, ...], num_layers: int, num_filters: int,
-                 precision: str = "fp32") -> None:
+                 conv_stack: ConvStack = plain_conv_stack) -> None:
         super().__init__()
         channels = obs_shape[0]
         layers: list[nn.Module] = []
         for i in range(num_layers):
             layers += [nn.Conv2d(channels if i == 0 else num_filters, num_filters, 3,
                                  stride=2 if i == 0 else 1), nn.ReLU()]
-        # channels-last is ~35% faster for these small convs on CPU (oneDNN) and fine on GPUs
-        self.convs = to_channels_last(PixelTrunk(*layers, precision=precision))
+        self.convs = conv_stack(layers)
         with torch.no_grad():
             self.out_dim = int(self.convs(torch.zeros(1, *obs_shape)).numel())
 
@@ -121,10 +132,10 @@ class IdentityTrunk(nn.Module):
 
 
 def make_trunk(obs_shape: tuple[int, ...], num_layers: int, num_filters: int,
-               mlp_hidden: int, precision: str = "fp32") -> nn.Module:
-    """Conv trunk for ``(C, H, W)`` pixels (in ``precision``), MLP trunk for ``(D,)`` vectors."""
+               mlp_hidden: int, conv_stack: ConvStack = plain_conv_stack) -> nn.Module:
+    """Conv trunk for ``(C, H, W)`` pixels (its convs run by ``conv_stack``), MLP trunk for ``(D,)`` vectors."""
     if len(obs_shape) == 3:
-        return ConvTrunk(obs_shape, num_layers, num_filters, precision)
+        return ConvTrunk(obs_shape, num_layers, num_filters, conv_stack)
     if len(obs_shape) == 1:
         return MLPTrunk(obs_shape, mlp_hidden)
     raise ValueError(f"DBC encodes (C, H, W) pixels or (D,) vectors, got observation shape {obs_shape}")

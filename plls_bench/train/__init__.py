@@ -2,5 +2,5 @@
 ``dbc`` runner.
 
 Layer ``learners`` of tests/test_imports.py: imports only from itself and the layers below it
-(``core`` up to ``baselines``); no layer below imports it.
+(``baselines``, ``core`` up to ``representations``); no layer below imports it.
 """

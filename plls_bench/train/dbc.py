@@ -31,6 +31,7 @@ from plls_bench.core.seeding import derive_seeds, derived_seed
 from plls_bench.envs import make_vec_env
 from plls_bench.envs.evaluation import run_episodes
 from plls_bench.repr.latent_wrappers import wrap_latent
+from plls_bench.repr.pixel_trunk import conv_stack
 from plls_bench.repr.store import Representations, ensure_representations
 from plls_bench.rundirs.devices import resolve_device
 from plls_bench.rundirs.run_dir import Run
@@ -104,7 +105,7 @@ class DBCTrainer:
         self.train_env, self.eval_env = make_envs(cfg, self.seeds.train, reprs)
         obs_shape = self.train_env.observation_space.shape
         self.action_dim = int(np.prod(self.train_env.action_space.shape))
-        self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device, cfg.precision)
+        self.agent = DBCAgent(obs_shape, self.action_dim, self.dbc, self.device, conv_stack(cfg.precision))
         self.episode_steps = math.ceil(cfg.env.max_episode_steps / cfg.env.action_repeat)  # agent steps
         self.replay = FrameReplay(obs_shape, cfg.env.frame_stack if cfg.env.pixels else 1, self.action_dim,
                                   capacity=min(self.dbc.replay_capacity, self.iterations),

@@ -28,6 +28,7 @@ from plls_bench.core.atomic_files import read_json
 from plls_bench.core.seeding import quiet_rng
 from plls_bench.envs import make_vec_env
 from plls_bench.repr.latent_wrappers import wrap_latent
+from plls_bench.repr.pixel_trunk import conv_stack
 from plls_bench.repr.store import Representations, load_representations
 from plls_bench.rundirs.artifacts import load_npz, save_npz
 from plls_bench.rundirs.composition import recorded_config
@@ -133,7 +134,7 @@ def load_trained_agent(run_dir: Path, device: str = "auto") -> tuple[Config, DBC
     finally:
         venv.close()
     with quiet_rng(target):  # the agent's throw-away initial weights never draw from the global stream
-        agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target, cfg.precision)
+        agent = DBCAgent(obs_shape, int(np.prod(space.shape)), cfg.algo.dbc, target, conv_stack(cfg.precision))
     state = torch.load(path, map_location=agent.device, weights_only=True)
     if path.name == Path(POLICY).name:  # a record's actor alone: acting needs nothing else
         agent.actor.load_state_dict(state)

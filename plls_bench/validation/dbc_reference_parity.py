@@ -45,6 +45,7 @@ from baselines.dbc.encoder import ConvTrunk
 from plls_bench.config import Config
 from plls_bench.core.atomic_files import atomic_write_bytes, atomic_write_json
 from plls_bench.core.seeding import seed_everything
+from plls_bench.repr.pixel_trunk import conv_stack
 from plls_bench.repr.store import Representations
 from plls_bench.train.dbc import make_envs
 from plls_bench.validation.precision import machine
@@ -206,7 +207,7 @@ def compare(agent_class: type, cfg: Config, batches: list[Batch], heldout: torch
     obs_shape, action_dim = tuple(heldout.shape[1:]), int(batches[0].action.shape[1])
     with default_dtype(dtype):
         torch.manual_seed(SEED)
-        suite = suite_side(DBCAgent(obs_shape, action_dim, cfg.algo.dbc, "cpu", cfg.precision))
+        suite = suite_side(DBCAgent(obs_shape, action_dim, cfg.algo.dbc, "cpu", conv_stack(cfg.precision)))
         reference = reference_side(agent_class, cfg, obs_shape, action_dim)
         copy_weights(suite, reference)
         perm = np.random.default_rng(SEED + 2).permutation(cfg.algo.dbc.batch_size)

@@ -27,6 +27,7 @@ from stable_baselines3.common.logger import configure
 from baselines.dbc import DBCAgent, FrameReplay
 from plls_bench.config import PRECISIONS, Config
 from plls_bench.core.seeding import quiet_rng, seed_everything, sub_seed
+from plls_bench.repr.pixel_trunk import conv_stack
 from plls_bench.repr.store import Representations
 from plls_bench.rundirs.composition import compose
 from plls_bench.train.dbc import make_envs, to_env_action
@@ -223,9 +224,9 @@ def dbc_runs(sizes: Sizes, log: Callable[[str], None]) -> dict[str, Any]:
     obs = torch.as_tensor(np.stack([s[0] for s in held]))
     actions = torch.as_tensor(np.stack([s[1] for s in held]))
     shape, action_dim = tuple(obs.shape[1:]), actions.shape[1]
-    agents = {"fp32": DBCAgent(shape, action_dim, dbc, "cpu", "fp32")}
+    agents = {"fp32": DBCAgent(shape, action_dim, dbc, "cpu", conv_stack("fp32"))}
     with quiet_rng():
-        agents["bf16"] = DBCAgent(shape, action_dim, dbc, "cpu", "bf16")
+        agents["bf16"] = DBCAgent(shape, action_dim, dbc, "cpu", conv_stack("bf16"))
     start = copy.deepcopy(agents["fp32"].state_dict())
     agents["bf16"].load_state_dict(start)
     out: dict[str, Any] = {"initial": dbc_outputs(agents["fp32"], obs, actions), "fp32": [], "bf16": [],
