@@ -15,6 +15,7 @@ from scipy import stats
 
 from plls_bench.report import BY_ID, ENTRIES, render_all
 from plls_bench.report.claims.claims_table import verdict
+from plls_bench.report.claims.costs import more_trials
 from plls_bench.report.collect import PAPER_DIR, png_size, verify_outputs
 from plls_bench.report.evidence.entry_types import Options
 from plls_bench.report.evidence.load import Runs
@@ -113,7 +114,10 @@ def test_claims_table_matches_hand_computation(hand) -> None:
     assert never["verdict"] == "not run at this budget" and never["reason"].startswith(
         "needs 6 trials for a 95% interval of the median convergence point; has 3 (per trial never, never, never")
     beats = claim(out, "PL-LS with PPO beats PPO on CarRacing")  # 3 + 3 trials: described, not tested
-    assert (beats["verdict"], beats["reason"]) == ("not run at this budget", "needs 5 per arm, has 3 + 3")
+    fig18 = ("carracing_plls_ppo", "carracing_ppo")  # planned 8 per arm (claims.yaml): 5 + 5 more, costed
+    cost = more_trials(*fig18, "quick", (3, 3), 8).text(fig18, "the planned 8")
+    assert (beats["verdict"], beats["reason"]) == ("not run at this budget", f"needs 5 per arm, has 3 + 3; {cost}")
+    assert cost.startswith("to the planned 8 per arm: 5 + 5 more trials, about ") and "CPU-hours" in cost
     assert beats["budget"] == "quick (3 + 3 trials), at 352,000 env steps (iteration 22)"
     # final = mean of the last 3 evaluations: PL-LS 100; PPO 5i + offset at i = 9, 10, 11, offsets 0, 10, 20
     assert beats["suite"].startswith("100 vs 60 (final, mean of the last 3 evaluations); not tested")
@@ -123,7 +127,8 @@ def test_claims_table_matches_hand_computation(hand) -> None:
     # (0 + 20 + 80 + 900) / 12, (0 + 80 + 100 + 900) / 12, (0 + 50 + 90 + 900) / 12 (std 10 / 3)
     variance = claim(out, "PPO has the larger variance")
     assert variance["suite_value"] == pytest.approx(10 - 10 / 3)
-    assert (variance["verdict"], variance["reason"]) == ("not run at this budget", "needs 5 per arm, has 3 + 3")
+    cost = more_trials(*fig18, "quick", (3, 3), 10).text(fig18, "the planned 10")
+    assert (variance["verdict"], variance["reason"]) == ("not run at this budget", f"needs 5 per arm, has 3 + 3; {cost}")
     mse = claim(out, "V_a test MSE on MountainCar")  # models a (0.010, two trials), b (0.014) and c (0.018)
     # mean 0.014, SD 0.004: the t-interval is 0.014 ± t(0.975, 2) 0.004 / sqrt(3), past the 0.0194 threshold
     # (the percentile bootstrap at 3 models was their range, [0.010, 0.018], and read "reproduced")

@@ -11,7 +11,8 @@ settings and each claim's own (margins, planned trials, solve criteria, readings
 - Threshold rows read an interval valid at their n (Student t, or an order-statistic interval of
   a median) against the threshold: entirely on the claim's side -> reproduced, entirely on the
   other -> not reproduced, straddling -> inconclusive.
-- Below the budget, range or trials a row needs -> not run at this budget. A comparison that
+- Below the budget, range or trials a row needs -> not run at this budget. A comparison row not
+  decided yet says what its planned trials cost (:mod:`plls_bench.report.claims.costs`). A comparison that
   ``requires`` a baseline check is not made while that check is not reproduced
   (:func:`~plls_bench.report.evidence.verdicts.gate_all`); nor is one where neither arm solves the task.
 """
@@ -27,6 +28,7 @@ import pandas as pd
 from plls_bench.config import BUDGET_NAMES
 from plls_bench.core.metric_rows import POLICIES
 from plls_bench.report.claims.compare import ahead_point, comparison_verdict, p_improvement, std_gap
+from plls_bench.report.claims.costs import undecided_cost
 from plls_bench.report.claims.levels import convergence_point, final_return
 from plls_bench.report.claims.settings import ClaimSettings, load_settings
 from plls_bench.report.claims.sweep import sweep_best
@@ -207,6 +209,8 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
         est, _, _, budget = judged[claim["claim"]]
         outcome, reason = final[claim["claim"]]
         comp = est.comparison if est else None
+        cost = undecided_cost(runs, claim, comp, outcome, settings)
+        reason += f"; {cost}" if cost else ""
         rows.append([claim["claim"], claim["paper"], est.text if est else NA, budget or NA,
                      outcome, reason, claim["source"]])
         records.append({"claim": claim["claim"], "entry": claim["entry"], "kind": claim["kind"],

@@ -2,16 +2,13 @@
 observed final score and spread, the trials per arm that 80% power would need at the observed
 effect (Welch's test at alpha, and at alpha / m, the first step of Holm's correction over the m
 primary comparisons), the paper's own trial count, the planned n of ``claims.yaml``, and what a
-trial costs by the dry run's rates (``bench/throughput.json`` through :mod:`plls_bench.pipeline.plan`)."""
+trial costs by the dry run's rates (:mod:`plls_bench.report.claims.costs`)."""
 from __future__ import annotations
-
-from functools import cache
 
 import pandas as pd
 
-from plls_bench.pipeline.plan import plan_profile
-from plls_bench.pipeline.rates import load_rates
 from plls_bench.report.claims.claims_table import KINDS, read_claims
+from plls_bench.report.claims.costs import more_trials
 from plls_bench.report.claims.settings import ClaimSettings, load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import Runs
@@ -30,19 +27,6 @@ CAPTION = (
     "Observed effects from 3 trials are themselves noisy, so these are orders of magnitude. Cost per trial: "
     "the dry run's estimate of one more trial of each arm (python -m plls_bench.reproduce --dry-run), "
     "from the rates in bench/throughput.json measured on the reference CPU.")
-
-
-@cache
-def trial_seconds(experiment: str, budget: str) -> float | None:
-    """The dry run's compute for one more trial of ``experiment`` at ``budget`` (its shared
-    artifacts costed in the first trial only, so the cheapest trial is the marginal one); None
-    without a measured rate."""
-    from plls_bench.rundirs.composition import CONF_DIR
-    runs_dir = str(CONF_DIR.parent / "results" / "runs")
-    plans = [p for p in plan_profile(budget, runs_dir, only=[experiment], rates=load_rates(), count_records=False)
-             if p.experiment == experiment]
-    seconds = [s for p in plans for s in p.trial_seconds.values()]
-    return min(seconds) if seconds and not any(p.missing_rates for p in plans) else None
 
 
 def _hours(seconds: float | None) -> str:
@@ -65,12 +49,10 @@ def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int
         record.update(n_a=comp.n_a, n_b=comp.n_b, mean_a=comp.mean_a, sd_a=comp.sd_a, mean_b=comp.mean_b,
                       sd_b=comp.sd_b, effect=comp.effect, n_power=need, n_power_holm=holm_first)
     budget = runs.experiment(claim["experiment"]).budget
-    arms = [n for n in (claim["experiment"], claim["baseline"] or claim["experiment"]) if n]
-    costs = [trial_seconds(a, budget) if budget else None for a in arms]
-    record["cost_per_trial_s"] = None if None in costs else sum(costs)
-    n_now = min(record.get("n_a", 0), record.get("n_b", 0))
-    more = max(record["planned_n"] - n_now, 0)
-    record["cost_to_planned_s"] = None if None in costs else more * sum(costs)
+    more = more_trials(claim["experiment"], claim["baseline"], budget,
+                       (record.get("n_a", 0), record.get("n_b", 0)), record["planned_n"])
+    record["cost_per_trial_s"] = None if None in more.per_trial_s else sum(more.per_trial_s)
+    record["cost_to_planned_s"] = more.seconds  # each arm from its own count (3 + 5 needs 4 + 2 to 7)
     spread = min(record.get("n_a", 0), record.get("n_b", 0)) > 1  # an SD per arm to plan with
     cells = [claim["claim"], record["arms"],
              f"{record['n_a']} + {record['n_b']}" if "n_a" in record else NA,
