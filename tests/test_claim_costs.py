@@ -16,7 +16,8 @@ def test_each_arm_is_costed_from_its_own_count_at_its_own_rate() -> None:
 def test_an_arm_without_a_measured_rate_is_named_not_costed() -> None:
     more = MoreTrials(target=5, more=(2, 2), per_trial_s=(3600.0, None))
     assert more.seconds is None
-    assert more.text(("a", "b"), "the planned 5") == "to the planned 5 per arm: 2 + 2 more trials (no measured rate for b)"
+    assert more.text(("a", "b"), "the planned 5") == (
+        "to the planned 5 per arm: 2 + 2 more trials (no measured rate for b)")
 
 
 def test_the_dry_run_s_rates_cost_a_cheap_and_an_expensive_arm_apart() -> None:

@@ -128,7 +128,8 @@ def test_claims_table_matches_hand_computation(hand) -> None:
     variance = claim(out, "PPO has the larger variance")
     assert variance["suite_value"] == pytest.approx(10 - 10 / 3)
     cost = more_trials(*fig18, "quick", (3, 3), 10).text(fig18, "the planned 10")
-    assert (variance["verdict"], variance["reason"]) == ("not run at this budget", f"needs 5 per arm, has 3 + 3; {cost}")
+    assert (variance["verdict"], variance["reason"]) == (
+        "not run at this budget", f"needs 5 per arm, has 3 + 3; {cost}")
     mse = claim(out, "V_a test MSE on MountainCar")  # models a (0.010, two trials), b (0.014) and c (0.018)
     # mean 0.014, SD 0.004: the t-interval is 0.014 ± t(0.975, 2) 0.004 / sqrt(3), past the 0.0194 threshold
     # (the percentile bootstrap at 3 models was their range, [0.010, 0.018], and read "reproduced")

@@ -112,7 +112,8 @@ def test_too_few_trials_are_not_run_at_this_budget_and_say_what_is_missing(tmp_p
     for text in (FIG18, "PPO has the larger variance"):  # described, not tested
         judged = row(table, text)
         assert judged["verdict"] == "not run at this budget"
-        assert judged["reason"].startswith("needs 5 per arm, has 1 + 1; to the planned ") and "not tested" in judged["suite"]
+        assert judged["reason"].startswith("needs 5 per arm, has 1 + 1; to the planned ")
+        assert "not tested" in judged["suite"]
         assert " per arm: " in judged["reason"] and "CPU-hours by the dry run's rates" in judged["reason"]
         assert judged["budget"] == "quick (1 + 1 trials), at 1,024,000 env steps (iteration 64)"
     assert row(table, FIG18)["suite_value"] == 120  # 3 x 60 - 1 x 60: the last three evaluations' mean is at 60
@@ -133,7 +134,8 @@ def test_a_running_trial_does_not_count_and_disjoint_grids_are_not_compared(tmp_
     arm(tmp_path / "shared", "carracing_ppo", 3, [0, 2, 4], lambda seed, i: 10.0 + seed)
     make_run(tmp_path / "shared", "carracing_ppo", 2, "quick", "budget.trials=3")  # back to running
     judged = row(claims(tmp_path / "shared", tmp_path / "out2"), FIG18)
-    assert judged["reason"].startswith("needs 5 per arm, has 3 + 2; to the planned 8 per arm: 5 + 6 more trials, about ")
+    assert judged["reason"].startswith(
+        "needs 5 per arm, has 3 + 2; to the planned 8 per arm: 5 + 6 more trials, about ")
     assert judged["budget"].startswith("quick (3 + 2 trials)") and judged["suite"].startswith("101 vs 10.5 ")
 
 
