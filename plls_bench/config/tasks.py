@@ -14,6 +14,7 @@ ENV_BACKENDS = ("gymnasium", "envpool")
 # How a dm_control task looks: its own textures, or the DBC reference code's copy of the suite
 # (plls_bench.envs.dmc.DBC_REFERENCE_LOOK; docs/decisions.md#d22)
 ENV_VISUALS = ("stock", "dbc_reference")
+RESTYLED_TASKS = ("cheetah",)  # the dm_control tasks env.visuals restyles; it means nothing elsewhere
 # gymnasium ids envpool ships (plls_bench.envs.envpool_backend.ENVPOOL_TASKS; kept here so that
 # validating a config never imports the engine)
 ENVPOOL_GYM_IDS = ("CarRacing-v3", "MountainCarContinuous-v0")
@@ -60,7 +61,7 @@ class EnvConfig(Validated):
         check_choice(self.data_policy, DATA_POLICIES, "env.data_policy")
         self.validate_backend()
         check_choice(self.visuals, ENV_VISUALS, "env.visuals")
-        check(self.visuals == "stock" or self.name == "cheetah", "env.visuals",
+        check(self.visuals == "stock" or self.name in RESTYLED_TASKS, "env.visuals",
               f"{self.visuals!r} restyles a dm_control task; env.name={self.name} is not one: use env.visuals=stock")
         check(0 <= self.data_policy_correlation < 1, "env.data_policy_correlation",
               f"must be in [0, 1), got {self.data_policy_correlation!r}")

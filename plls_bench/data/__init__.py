@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from plls_bench.config import Config
+from plls_bench.config.tasks import RESTYLED_TASKS
 from plls_bench.core.atomic_files import atomic_write_json, read_json
 from plls_bench.core.seeding import derive_seeds
 from plls_bench.rundirs.artifacts import Artifact, get_or_build, load_npz, save_npz
@@ -67,6 +68,8 @@ def dataset_key(cfg: Config) -> dict[str, Any]:
     env = {k: v for k, v in asdict(cfg.env).items() if k not in _NOT_IN_KEY}
     if env["backend"] == "gymnasium":  # the backend before the key existed: old artifacts keep their keys
         del env["backend"]
+    if env["name"] not in RESTYLED_TASKS:  # env.visuals restyles dm_control only: it cannot change
+        del env["visuals"]  # this task's data, and the artifacts made before the key exist keep their keys
     seeds = derive_seeds(cfg.seed, cfg.data_seed, cfg.repr.per_trial)
     return {"format": DATA_FORMAT, "env": env, "episodes": cfg.budget.data_episodes,
             "max_steps": cfg.budget.data_steps_per_episode, "seed": seeds.data}
