@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 setup:
 	./reproduce.sh --setup-only
 
-setup-dev:  ## .venv with the dev extra (pytest, mkdocs)
+setup-dev:  ## .venv with the dev extra (pytest, mkdocs, ruff)
 	./reproduce.sh --setup-only --dev
 
 lint: setup-dev  ## ruff over the whole tree (rules and why: pyproject.toml, [tool.ruff])

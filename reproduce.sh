@@ -5,7 +5,7 @@
 #
 #   ./reproduce.sh --profile smoke        # the whole pipeline at tiny budgets
 #   ./reproduce.sh --setup-only           # only create/refresh .venv and check GL libraries
-#   ./reproduce.sh --setup-only --dev     # the same, with the dev extra (pytest, mkdocs) for tests and docs
+#   ./reproduce.sh --setup-only --dev     # the same, with the dev extra (pytest, mkdocs, ruff) for tests and docs
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -59,7 +59,7 @@ setup_venv() {
   fi
   # The dev extra (tests, docs site) on top, with its own stamp, so a plain setup never drops it.
   if [ "$dev" -eq 1 ] && [ "$(cat "$stamp.dev" 2>/dev/null)" != "$want" ]; then
-    say "installing the dev extra (pytest, mkdocs) into $VENV"
+    say "installing the dev extra (pytest, mkdocs, ruff) into $VENV"
     pip_install -e ".[dev]"
     echo "$want" > "$stamp.dev"
   fi

@@ -18,8 +18,8 @@ import sys
 from pathlib import Path
 
 from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, FilmstripConfig
-from plls_bench.config.analysis import filmstrip_hash
 from plls_bench.config.checks import check_writable_dir
+from plls_bench.config.studies_film import filmstrip_hash
 from plls_bench.core.atomic_files import read_json
 from plls_bench.core.signals import TERMINATED_EXIT_CODE, Terminated, sigterm_raises
 from plls_bench.pipeline.launch import (

@@ -21,7 +21,6 @@ from typing import Any, Optional
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
-from plls_bench.config.analysis import LATENT_CHOICES, STUDY_NAMES, FilmstripConfig, StudyConfig
 from plls_bench.config.checks import (
     ConfigError,
     Validated,
@@ -44,6 +43,7 @@ from plls_bench.config.learning import (
     PPOConfig,
 )
 from plls_bench.config.runner_checks import RUNNER_CHECKS
+from plls_bench.config.studies_film import LATENT_CHOICES, STUDY_NAMES, FilmstripConfig, StudyConfig
 from plls_bench.config.tasks import (
     DATA_POLICIES,
     ENV_NAMES,

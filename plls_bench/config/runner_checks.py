@@ -10,9 +10,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Optional, Protocol
 
-from plls_bench.config.analysis import StudyConfig
 from plls_bench.config.checks import check
 from plls_bench.config.learning import AlgoConfig
+from plls_bench.config.studies_film import StudyConfig
 from plls_bench.config.tasks import EnvConfig, ReprConfig, conv_sizes
 
 

@@ -67,7 +67,7 @@ HASH_PINNED_KEYS = {"device": "cpu"}
 # key: already in the path (experiment, seed), the profile (one run dir serves every profile; the
 # config hash tells them apart and supersedes) and Hydra's launcher. conf/config.yaml's
 # hydra.job.config.override_dirname.exclude_keys is these plus :func:`unhashed_keys`: Hydra reads
-# that list from yaml, so tests/test_runs.py checks the two agree.
+# that list from yaml, so tests/test_run_dir.py checks the two agree.
 VARIANT_EXCLUDED_KEYS = ("experiment", "seed", "budget", "hydra/launcher")
 # What a method's modules are (Table 3, Figs. 12 and 17), written by each runner that builds a
 # model and read by the collector: parameter counts, and the layers of each module.
