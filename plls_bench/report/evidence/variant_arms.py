@@ -177,11 +177,26 @@ def judge(runs: Runs, variant: Variant, settings: ClaimSettings) -> Judged:
             missing = str(err)
         else:
             return _tested(pair, variant, settings)
-    scores = [_own_scores(c, settings) for c in own]
+    arms = [matched_or_none(c) for c in own]
+    scores = [_scores(a.values[0], settings) if a is not None else None for a in arms]
     empty = (np.zeros(0),) * 3
     final, curve, last = zip(*[s or empty for s in scores], *[empty] * (2 - len(scores)))
-    return Judged(list(final), list(curve), list(last), "each arm on its own evaluations", variant.base.variant,
-                  missing=missing)
+    return Judged(list(final), list(curve), list(last), _at("each arm on its own evaluations", arms, settings),
+                  variant.base.variant, missing=missing)
+
+
+def matched_or_none(curves: Curves) -> Matched | None:
+    """One arm's finished trials on the evaluations all of them reach; None when none finished."""
+    try:
+        return matched(curves)
+    except NotJudged:
+        return None
+
+
+def _at(where: str, arms: list[Matched | None], settings: ClaimSettings) -> str:
+    """Where the arms were read, and how many evaluations "final" averaged where fewer than ``final_tail``."""
+    tail = min([settings.final_tail, *(len(a.grid) for a in arms if a is not None)])
+    return where if tail == settings.final_tail else f"{where}; final over the last {tail} evaluations"
 
 
 def _missing(variant: Variant) -> str | None:
@@ -204,14 +219,6 @@ def _scores(values: np.ndarray, settings: ClaimSettings) -> tuple[np.ndarray, np
     return tail_mean(values, settings.final_tail), values.mean(axis=1), values[:, -1]
 
 
-def _own_scores(curves: Curves, settings: ClaimSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """:func:`_scores` of one arm on the evaluations all its finished trials reach (None: none finished)."""
-    try:
-        return _scores(matched(curves).values[0], settings)
-    except NotJudged:
-        return None
-
-
 def _tested(pair: Matched, variant: Variant, settings: ClaimSettings) -> Judged:
     """Both arms on their common evaluations, the final returns tested (variant = arm a). The protocol's
     p is two-sided whatever its ``direction``, which only names the arm found higher: "greater" reads a
@@ -219,8 +226,7 @@ def _tested(pair: Matched, variant: Variant, settings: ClaimSettings) -> Judged:
     final, curve, last = zip(*[_scores(v, settings) for v in pair.values])
     comparison, last_comparison = (compare_arms(a, b, direction="greater", alpha=settings.alpha,
                                                 min_n=settings.min_n) for a, b in (final, last))
-    tail = min(settings.final_tail, len(pair.grid))
-    at = pair.at if tail == settings.final_tail else f"{pair.at}; final over the last {tail} evaluations"
+    at = _at(pair.at, [pair], settings)
     test = {"test": comparison.test, "statistic": comparison.statistic, "p": comparison.p,
             "n_for_power": comparison.n_for_power, "protocol_outcome": comparison.outcome,
             "p_last": last_comparison.p, "protocol_outcome_last": last_comparison.outcome}

@@ -8,11 +8,10 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from plls_bench.report.evidence.load import DEFAULT_VARIANT
-from plls_bench.report.evidence.matched import NotJudged, matched
 from plls_bench.report.evidence.protocol import tail_mean
 from plls_bench.report.evidence.returns import Curves, x_label
 from plls_bench.report.evidence.table_formats import fmt
-from plls_bench.report.evidence.variant_arms import X_AXIS, Variant
+from plls_bench.report.evidence.variant_arms import X_AXIS, Variant, matched_or_none
 from plls_bench.report.figures.curves import band_frame, draw_band
 from plls_bench.report.figures.plot import new_figure, suptitle
 
@@ -28,13 +27,9 @@ def figure_name(preset: str) -> str:
 def legend(name: str, curves: Curves, tail: int) -> str:
     """``name (n trials, budget b; final x, mean of the last k evaluations)``: the final return over
     the arm's finished trials on the evaluations all of them reach, as the variants table reads it."""
-    try:
-        arm = matched(curves)
-    except NotJudged:  # no finished trial reaches an evaluation: the curve alone
-        final = ""
-    else:
-        final = (f"; final {fmt(float(tail_mean(arm.values[0], tail).mean()))} (mean of the last "
-                 f"{min(tail, len(arm.grid))} evaluations)")
+    arm = matched_or_none(curves)
+    final = "" if arm is None else (f"; final {fmt(float(tail_mean(arm.values[0], tail).mean()))} (mean of the "
+                                    f"last {min(tail, len(arm.grid))} evaluations)")
     return f"{name} ({curves.n} trial{'' if curves.n == 1 else 's'}, budget {curves.experiment.budget}{final})"
 
 

@@ -38,7 +38,7 @@ def caption(settings: ClaimSettings) -> str:
 def columns(settings: ClaimSettings) -> list[str]:
     final = f"Final (mean of the last {settings.final_tail} evaluations)"
     return ["Preset", "Override", "Base", "Budget", "Trials", f"{final}: variant", f"{final}: base",
-            "Curve mean: variant", "Curve mean: base", "Compared", f"Variant vs base ({final.lower()})"]
+            "Curve mean: variant", "Curve mean: base", "Compared", "Variant vs base (final return)"]
 
 
 def spread(values: np.ndarray) -> str:
