@@ -69,6 +69,9 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
         rows += [f"  behind: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,}; "
                  f"an earlier attempt reached {t.lost_at:,} (its pending record: metrics only, no checkpoint)"
                  for t in p.pending if t.lost_at]
+        if p.inert:  # planned all the same: the override is the user's, the warning only says it is inert
+            rows.append(f"  warning: {p.label}: {', '.join(p.inert)}: no module of this preset reads it, so "
+                        "its trials compute what the preset's own do")
     pending, recorded = sum(len(p.pending) for p in plans), sum(p.recorded for p in plans)
     rerun = "run again (--rerun-recorded)" if plans and not plans[0].count_records else "counted as done"
     rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "

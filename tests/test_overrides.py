@@ -9,7 +9,7 @@ import pytest
 from plls_bench.config import ConfigError
 from plls_bench.pipeline.overrides import override_variants
 from plls_bench.pipeline.plan import plan_profile
-from plls_bench.reproduce import parse_args
+from plls_bench.reproduce import format_plan, parse_args
 from tests.test_reproduce import reproduce
 
 PRESET = "mountaincar_plls_ppo"
@@ -55,6 +55,16 @@ def test_plan_puts_each_variant_beside_the_presets_own_runs(tmp_path: Path) -> N
     assert dirs == [f"{PRESET}/default/seed=0", f"{PRESET}/repr.action.latent_dim=4/seed=0",
                     f"{PRESET}/repr.action.latent_dim=8/seed=0"]
     assert [p.trials[0].cfg.repr.action.latent_dim for p in plans[1:]] == [4, 8]
+    assert not any(p.inert for p in plans)  # mountaincar_plls_ppo's V_a reads latent_dim
+
+
+def test_an_override_of_a_representation_the_preset_has_off_is_planned_with_a_warning(tmp_path: Path) -> None:
+    plans = plan_profile("smoke", str(tmp_path), only=["cheetah_sac_state"], rates={},
+                         variants=override_variants(["repr.action.latent_dim=8"]))
+    assert len(plans) == 2 and len(plans[1].trials) == len(plans[0].trials)  # still planned and run
+    assert plans[1].inert == ["repr.action.latent_dim (V_a off)"] and plans[0].inert == []
+    assert "warning: cheetah_sac_state repr.action.latent_dim=8: repr.action.latent_dim (V_a off): no module " \
+           "of this preset reads it" in format_plan(plans, jobs=1)
 
 
 def test_dry_run_costs_the_variants_and_an_unknown_key_is_refused_before_any_run_dir(tmp_path: Path) -> None:

@@ -6,10 +6,12 @@ given together make one variant, and ``KEY=V1,V2`` (Hydra's sweep syntax) makes 
 value. Keys with an option of their own (the profile, the seeds, the runs dir, the precision, Hydra's
 settings) and keys that change no result (so would name no variant) are refused here, before anything
 is planned; a key the config does not have is refused when the plan composes it (``plan_profile``).
+An override of a key the preset never reads (a representation's key while that representation is off)
+still plans and runs its trials; the dry run says so (:func:`inert_overrides`).
 """
 from __future__ import annotations
 
-from plls_bench.config import ConfigError
+from plls_bench.config import Config, ConfigError
 from plls_bench.rundirs.composition import expand_sweeps
 from plls_bench.rundirs.run_dir import unhashed_keys
 
@@ -17,6 +19,10 @@ from plls_bench.rundirs.run_dir import unhashed_keys
 OWN_OPTIONS = {"budget": "--profile", "seed": "the profile's budget.trials", "runs_dir": "--runs",
                "precision": "--precision", "experiment": "--only", "hydra": "--hydra",
                "hydra/launcher": "--launcher"}
+
+# Representation groups whose keys build nothing while the group is off (``kind: none``,
+# conf/repr/action/none.yaml and conf/repr/state/none.yaml): the module each names.
+SWITCHED_GROUPS = {"action": "V_a", "state": "V_s"}
 
 
 def override_key(override: str) -> str:
@@ -51,3 +57,15 @@ def override_variants(overrides: list[str]) -> list[tuple[str, ...]]:
     except Exception as err:  # Hydra's override grammar: an unbalanced bracket, a stray quote
         raise ConfigError(f"--override {' '.join(overrides)}: not a Hydra override ({err})") from err
     return list(dict.fromkeys(tuple(job) for job in jobs))
+
+
+def inert_overrides(cfg: Config, overrides: tuple[str, ...]) -> list[str]:
+    """``key (V_x off)`` for each of ``overrides`` that sets a key of a representation that is off
+    in the composed ``cfg``: nothing reads it, so the variant's trials compute what the preset's do."""
+    inert = []
+    for override in overrides:
+        parts = override_key(override).split(".")
+        if len(parts) > 2 and parts[0] == "repr" and parts[1] in SWITCHED_GROUPS \
+                and getattr(cfg.repr, parts[1]).kind == "none":
+            inert.append(f"{'.'.join(parts)} ({SWITCHED_GROUPS[parts[1]]} off)")
+    return inert

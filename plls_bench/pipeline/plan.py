@@ -18,6 +18,7 @@ from typing import Any
 
 from plls_bench.config import Config, ConfigError
 from plls_bench.core.hashing import stable_hash
+from plls_bench.pipeline.overrides import inert_overrides
 from plls_bench.pipeline.rates import load_rates, rate_keys
 from plls_bench.pipeline.runner_registry import runner_spec
 from plls_bench.pipeline.sweeps import Sweep
@@ -71,6 +72,7 @@ class PresetPlan:
     missing_rates: list[str] = field(default_factory=list)
     overrides: tuple[str, ...] = ()        # a sweep value's command-line override (conf/sweep/)
     count_records: bool = True             # a recorded trial is done (reproduce --rerun-recorded: not)
+    inert: list[str] = field(default_factory=list)  # overrides of keys the preset never reads (overrides.py)
 
     @property
     def label(self) -> str:
@@ -131,9 +133,11 @@ def _plan_variant(experiment: str, profile: str, runs_dir: str, count_records: b
                   overrides: tuple[str, ...]) -> PresetPlan:
     """A ``reproduce --override`` variant of a preset; a setting it cannot compose names the override."""
     try:
-        return _plan_preset(experiment, profile, runs_dir, count_records, overrides)
+        plan = _plan_preset(experiment, profile, runs_dir, count_records, overrides)
     except ConfigError as err:
         raise ConfigError(f"--override {' '.join(overrides)} on {experiment}: {err}") from err
+    plan.inert = inert_overrides(plan.trials[0].cfg, overrides) if plan.trials else []
+    return plan
 
 
 def plan_sweep(sweep: Sweep, profile: str, runs_dir: str, rates: dict[str, float] | None = None,

@@ -155,6 +155,11 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
     return rows
 
 
+def paper_settings(paper_dir: Path) -> ClaimSettings:
+    """The protocol's settings of ``paper_dir/claims.yaml``, checked against ``claims.csv``'s rows."""
+    return load_settings(paper_dir, [row["claim"] for row in read_claims(paper_dir)])
+
+
 def _check_chains(rows: list[dict[str, str]], paper_dir: Path) -> None:
     """Baseline checks may chain (a row's ``requires`` row requires another), but never back to a row
     already on the chain: its verdict would wait on itself."""
