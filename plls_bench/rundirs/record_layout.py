@@ -31,13 +31,22 @@ MAX_FILE_BYTES = 16 * 1024 * 1024
 # still goes in parts (``<name>.part-<i>``) should the cap be raised, and older records in parts
 # still restore.
 MAX_PARTIAL_BYTES = 16 * 1024 * 1024
-# What the tracked files under results/records may weigh together (.ci/run fails past it). 128 MiB
-# today (34 PPO zips without optimiser state, 21 MiB; 10 DBC / SAC actors, 72 MiB; V_s / V_a 8 MiB;
-# metrics and filmstrips); the quick profile's missing trials add about 30 MiB (two PL-LS + DBC
-# actors of 12 MiB, MountainCar trials of 1-2 MiB), so 192 MiB leaves a fifth for partial CNN PPO
-# records on top. Recording the paper profile (40 CarRacing and 10 pixel DBC trials) needs a
-# decision to raise it, not a silent growth of every clone.
-RECORDS_BUDGET_BYTES = 192 * 1024 * 1024
+# What the tracked files under results/records may weigh together (.ci/run fails past it), sized for
+# the quick profile's completion (measured 2026-12-05 at faf36b2: `git ls-files -z results/records |
+# xargs -0 du -cb`, and the quick dry run's 64 pending trials). Today 135.6 MiB: 4 pixel DBC / PL-LS +
+# DBC actors of 11.9 MiB (dbc_policy.pt: the actor's conv encoder and MLP trunk alone, 3.1 M fp32
+# parameters) and 6 state-SAC actors of 4.1 MiB, 73 MiB; 6 CNN PPO zips without optimiser state,
+# 20 MiB; V_s / V_a 8 MiB; MountainCar metrics and zips 1.2-1.8 MiB a trial. Finishing quick adds,
+# per record as measured: 5 pixel actors (2 PL-LS + DBC, 3 pixel SAC, whose actor is DBC's)
+# x 12.05 = 60.3; 9 CNN PPO (2 ppo, 2 ppo_va, 5 gSDE) x 3.41 = 30.7; 2 state SAC x 4.18 = 8.4;
+# 5 MountainCar zoo x 1.47 = 7.4; 19 latent CarRacing PPO x 0.3 = 5.7; 3 cheetah V_a x 0.15 = 0.5
+# (the 3 DBC, 1 PL-LS + DBC and 16 MountainCar re-runs replace records of their own size): 113 MiB,
+# so about 249 MiB at completion, 57% of it DBC / SAC actors. 288 MiB leaves 39 MiB (16%): two
+# stopped CNN PPO trials carried as partial records (10 MiB each, one per job of a 2-job sitting)
+# and 19 MiB for the estimates' error. Recording the paper profile (30 CNN PPO trials, 13 pixel
+# DBC / SAC actors: about 260 MiB of policies) needs a decision to raise it, not a silent growth
+# of every clone.
+RECORDS_BUDGET_BYTES = 288 * 1024 * 1024
 PART_SUFFIX = ".part-"
 EXCLUDED_BUDGETS = ("smoke",)  # smoke runs check the pipeline, not the paper
 PARTIAL_DIR = "partial"
