@@ -23,10 +23,12 @@ from plls_bench.rundirs.run_dir import STATUS_DONE, Run, stored_identity
 # Adam's moments, as a partial record carries it. .ci/run fails on any tracked file over it.
 MAX_FILE_BYTES = 16 * 1024 * 1024
 # A partial record carries a whole checkpoint, so it is carried only while small: a stopped CNN PPO
-# trial (its 9.6 MiB zip with Adam's moments and its metrics, about 10 MiB) fits; a stopped pixel
-# DBC trial (a 116 MiB agent with optimisers plus its frame replay, 3.2 MiB per 1000 transitions)
-# or state-SAC trial (a 45 MiB dbc.pt) does not, and stays in its run dir on the machine that runs
-# it, with its metrics so far written as a pending record. Carrying pixel DBC cost git history
+# trial (its 9.6 MiB zip with Adam's moments and its metrics, about 10 MiB) fits. A stopped
+# DBC-runner trial is never carried, whatever its size (RunnerSpec.snapshot_holds_replay: its
+# snapshot holds a replay buffer; at reference sizes a pixel DBC's 116 MiB agent with optimisers
+# plus its frame replay, 3.2 MiB per 1000 transitions, or a state SAC's 45 MiB dbc.pt, are over
+# this cap too): it stays in its run dir on the machine that runs it, with its metrics so far
+# written as a pending record. Carrying pixel DBC cost git history
 # about 120 MiB per 3-hour sitting; every user of a clone paid for it. A file over MAX_FILE_BYTES
 # still goes in parts (``<name>.part-<i>``) should the cap be raised, and older records in parts
 # still restore.
