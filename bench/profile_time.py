@@ -16,6 +16,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from datetime import date
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -52,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"profile {args.profile}: {verdict} in {seconds:.0f} s\nmachine (after): {after}")
     text = "\n".join([
         f"## Wall time of a whole profile (`bench/profile_time.py`, profile={args.profile})", "",
-        f"Command: `{command}`  ", f"Machine: {after}  ",
+        f"Command: `{command}`  ", f"Machine: {after}  ", f"Measured: {date.today().isoformat()}  ",
         f"**{verdict} in {seconds:.0f} s ({seconds / 60:.1f} min)**: every preset's trials, the filmstrips "
         "and the results collector, from empty run and result dirs (the `.venv` already made). "
         "Per preset (process start, compute, evaluation):", "",

@@ -32,6 +32,7 @@ from plls_bench.pipeline.launch import (
 )
 from plls_bench.pipeline.overrides import override_variants
 from plls_bench.pipeline.plan import PresetPlan, Trial, plan_profile, plan_sweep
+from plls_bench.pipeline.plan_totals import plan_totals
 from plls_bench.pipeline.rates import THROUGHPUT_FILE, rate_machines
 from plls_bench.pipeline.runner_registry import runner_spec
 from plls_bench.pipeline.sweeps import load_sweep, sweep_names
@@ -55,14 +56,11 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
     width = max([28, *(len(p.label) for p in plans)])
     rows = [f"{'preset':{width}s} {'runner':8s} {'to run':>9s} {'recorded':>8s} {'env steps/trial':>15s} "
             f"{'est. CPU-h':>10s}"]
-    total, unknown = 0.0, set()
     for p in plans:
         est = "n/a" if p.seconds is None else f"{p.seconds / 3600:.2f}"
         trials = f"{len(p.pending)}/{len(p.trials)}"
         rows.append(f"{p.label:{width}s} {p.runner:8s} {trials:>9s} {p.recorded:>8d} {p.env_steps_per_trial:>15,d} "
                     f"{est:>10s}")
-        total += p.seconds or 0.0
-        unknown.update(p.missing_rates)
     for p in plans:  # trials that continue from a checkpoint: only their remainder is costed
         rows += [f"  resumes: {p.label} seed={t.seed} at iteration {t.resumes_at:,}/{t.iterations:,} "
                  f"(from its {t.resumes_from})" for t in p.pending if t.resumes_from]
@@ -72,19 +70,19 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
         if p.inert:  # planned all the same: the override is the user's, the warning only says it is inert
             rows.append(f"  warning: {p.label}: {', '.join(p.inert)}: no module of this preset reads it, so "
                         "its trials compute what the preset's own do")
-    pending, recorded = sum(len(p.pending) for p in plans), sum(p.recorded for p in plans)
+    totals = plan_totals(plans)
     rerun = "run again (--rerun-recorded)" if plans and not plans[0].count_records else "counted as done"
-    rows.append(f"trials to run: {pending} of {sum(len(p.trials) for p in plans)} (the rest are done); "
-                f"{recorded} recorded in committed records, {rerun}")
+    rows.append(f"trials to run: {totals.pending} of {totals.trials} (the rest are done); "
+                f"{totals.recorded} recorded in committed records, {rerun}")
     threads = max((trial_threads(p, t, launcher) for p in plans for t in p.pending), default=1)
-    rows.append(f"estimated compute: {total / 3600:.1f} CPU-hours (one trial per process); "
+    rows.append(f"estimated compute: {totals.seconds / 3600:.1f} CPU-hours (one trial per process); "
                 f"about {estimated_wall_seconds(plans, jobs, order, launcher) / 3600:.1f} h wall with {jobs} "
                 f"parallel job(s) of up to {threads} thread(s) each, trials started in the launch queue's order "
                 f"({order} estimated time left first)")
     if stop_after_min > 0:
         rows += deadline_outlook(plans, jobs, stop_after_min, order, launcher)
-    if unknown:
-        rows.append(f"no measured throughput for {', '.join(sorted(unknown))}: left out of the estimate "
+    if totals.missing_rates:
+        rows.append(f"no measured throughput for {', '.join(totals.missing_rates)}: left out of the estimate "
                     f"(bench/throughput.py measures them into {THROUGHPUT_FILE.name})")
     machines = rate_machines()
     if machines:  # rates move with the CPU (CNN training 2x between two 2-core VMs: docs/benchmarks.md)

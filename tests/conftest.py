@@ -1,6 +1,7 @@
 """Shared fixtures: every test composes the shipped configs and writes under a temp runs_dir."""
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing as mp
 import os
 import subprocess
@@ -21,6 +22,16 @@ EXPERIMENTS = sorted(p.stem for p in (REPO_ROOT / "conf" / "experiment").glob("*
 @pytest.fixture
 def runs_dir(tmp_path: Path) -> Path:
     return tmp_path / "runs"
+
+
+@pytest.fixture
+def dbc_carried(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The DBC runner's stopped runs carried as partial records, as exports did before
+    ``RunnerSpec.snapshot_holds_replay``: for the runner-agnostic carrying (snapshots, parts, the
+    whole-record cap) at small sizes, and the restore of partial records written then."""
+    from plls_bench.pipeline.runner_registry import RUNNERS
+
+    monkeypatch.setitem(RUNNERS, "dbc", dataclasses.replace(RUNNERS["dbc"], snapshot_holds_replay=False))
 
 
 @pytest.fixture

@@ -1,4 +1,7 @@
-"""An unfinished DBC-runner trial carried across machines as a partial record: state SAC's
+"""An unfinished DBC-runner trial carried across machines as a partial record, as exports did
+before ``RunnerSpec.snapshot_holds_replay`` (now it never is: test_light_repository.py; the
+``dbc_carried`` fixture restores the old rule, so the runner-agnostic carrying and the restore of
+partial records written then stay tested at small sizes): state SAC's
 checkpoint (``dbc.pt`` with optimisers, over the per-file cap, goes in parts; its replay chunks
 travel with it), and what is refused: a record over the whole-record cap (a pixel DBC's), or parts
 that no longer join to the file they were cut from; a checkpoint committed while the export reads
@@ -37,7 +40,7 @@ def all_budgets(monkeypatch: pytest.MonkeyPatch) -> None:
 @pytest.mark.slow
 def test_an_interrupted_state_sac_trial_continues_from_its_partial_record_in_a_fresh_runs_dir(
         tmp_path: Path, all_budgets: None, one_torch_thread: None, monkeypatch: pytest.MonkeyPatch,
-        caplog: pytest.LogCaptureFixture) -> None:
+        caplog: pytest.LogCaptureFixture, dbc_carried: None) -> None:
     dirs = {name: run_dir_path(tmp_path / name / "results" / "runs", *KEY.parts[:2], 0)
             for name in ("local", "carried")}
     cfgs = {name: compose_preset("cheetah_sac_state", d.parents[2], *SMALL) for name, d in dirs.items()}
@@ -78,8 +81,8 @@ def _checkpoint(run: Run, size: int) -> Run:
     return run
 
 
-def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path,
-                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                               dbc_carried: None) -> None:
     runs = tmp_path / "results" / "runs"
     run, _ = make_run(runs, "cheetah_dbc", 0)
     assert export_records(runs).skipped == ["cheetah_dbc/default/seed=0: status running (no checkpoint to carry)"]
@@ -93,8 +96,8 @@ def test_a_dbc_record_over_the_whole_record_cap_is_not_carried(tmp_path: Path,
     assert not (tmp_path / "results" / "records" / PARTIAL_DIR).exists()
 
 
-def test_parts_that_do_not_join_to_the_recorded_file_are_refused(tmp_path: Path,
-                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+def test_parts_that_do_not_join_to_the_recorded_file_are_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                dbc_carried: None) -> None:
     runs = tmp_path / "results" / "runs"
     run = _checkpoint(make_run(runs, "cheetah_sac_state", 0)[0], 2**14)
     monkeypatch.setattr(export, "MAX_FILE_BYTES", 2**12)  # above the record's json files, below dbc.pt

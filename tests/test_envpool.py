@@ -104,8 +104,8 @@ def test_random_policy_data_is_determined_by_its_seed(runs_dir: Path) -> None:
 
 @pytest.mark.parametrize(("profile", "backend"), [("smoke", "gymnasium"), ("quick", "envpool"), ("paper", "envpool")])
 def test_each_profile_chooses_its_carracing_backend(runs_dir: Path, profile: str, backend: str) -> None:
-    """CI's smoke profile stays on the paper's engine; quick and paper use envpool (README,
-    "Env backends"); the command line still wins."""
+    """CI's smoke profile stays on the paper's engine; quick and paper use envpool
+    (docs/configuration.md, "Env backends"); the command line still wins."""
     assert compose_preset("carracing_ppo", runs_dir, f"budget={profile}").env.backend == backend
     chosen = compose_preset("carracing_ppo", runs_dir, f"budget={profile}", "env.backend=gymnasium")
     assert chosen.env.backend == "gymnasium"

@@ -65,7 +65,8 @@ def film(*args: str) -> subprocess.CompletedProcess[str]:
                                                                  ("carracing_plls_ppo", 100, 48, (200, 300)),
                                                                  ("cheetah_plls_dbc", 30, 40, (84, 84))])
 def test_cli_films_a_policy_run(preset: str, cap: int, interval: int, size: tuple[int, int], tmp_path: Path) -> None:
-    """Figs 11, 19 and 22 from smoke runs (CarRacing and cheetah capped), as the README's table says."""
+    """Figs 11, 19 and 22 from smoke runs (CarRacing and cheetah capped), as conf/filmstrip/<env>.yaml
+    sets them (docs/results.md, "Policy filmstrips")."""
     run_dir = tmp_path / "runs" / preset / "default" / "seed=0"
     cfg = compose_preset(preset, tmp_path / "runs")
     assert execute(cfg, run_dir) == "done"

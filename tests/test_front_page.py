@@ -1,6 +1,7 @@
-"""The README's headline results are the collector's: the committed block is what the committed
-results/ give, every claim it names is in the claims table, and the collector rewrites the block
-only in this checkout's README, between its markers."""
+"""The README's headline results and profile table are the collector's: the committed headline is
+what the committed results/ give, every claim it names is in the claims table, the profile table is
+the dry run's plan of a fresh clone, and the collector rewrites both blocks only in this checkout's
+README, between their markers."""
 from __future__ import annotations
 
 import csv
@@ -8,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from plls_bench.report import headline
-from plls_bench.report.headline import END, HEADLINE_CLAIMS, START, build_headline, with_headline
+from plls_bench.pipeline.plan_totals import plan_totals
+from plls_bench.report import headline, profile_costs
+from plls_bench.report.headline import END, HEADLINE_CLAIMS, START, build_headline, with_block, with_headline
 from tests.conftest import REPO_ROOT
 
 
@@ -66,5 +68,40 @@ def test_only_this_checkouts_results_rewrite_the_readme(tmp_path: Path, monkeypa
     assert "old" in front.read_text()
     assert headline.write_front_page(REPO_ROOT / "results")
     assert front.read_text() == f"# T\n{build_headline(REPO_ROOT / 'results')}\n"
+    profiles = f"{profile_costs.START}\nplanned\n{profile_costs.END}"
+    monkeypatch.setattr(headline, "build_profiles", lambda: profiles)
+    front.write_text(f"# T\n{START}\nold\n{END}\n{profile_costs.START}\nold\n{profile_costs.END}\n")
+    assert headline.write_front_page(REPO_ROOT / "results")
+    assert front.read_text() == f"# T\n{build_headline(REPO_ROOT / 'results')}\n{profiles}\n"
     front.write_text("# T without markers\n")
     assert not headline.write_front_page(REPO_ROOT / "results") and front.read_text() == "# T without markers\n"
+
+
+def test_the_committed_profile_table_is_what_the_plan_gives() -> None:
+    """The README's profile costs are the dry run's on a fresh clone, from committed inputs only."""
+    page = (REPO_ROOT / "README.md").read_text()
+    block = profile_costs.build_profiles()
+    assert with_block(page, block, profile_costs.START, profile_costs.END) == page, (
+        "README.md's profile table is stale: rerun the collector (`python -m plls_bench.report "
+        "--records-only`), which rewrites it")
+    quick = profile_costs.plan_profile("quick", str(profile_costs.FRESH_RUNS))
+    totals = plan_totals(quick)
+    assert f"{totals.seconds / 3600:,.1f} left on a fresh clone ({totals.pending} of {totals.trials} trials" in block
+    assert not profile_costs.FRESH_RUNS.exists(), "planning a fresh clone made its runs dir"
+
+
+def test_the_profile_table_reads_the_measured_smoke_time_and_plans_no_local_runs(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    bench = tmp_path / "benchmarks.md"
+    begin, end = profile_costs.SMOKE_SECTION
+    section = ("Machine: vm: x86_64, 2 cores, load average 1.0  \nMeasured: 2026-11-21  \n"
+               "**finished in 157 s (2.6 min)**: ...\n\n| preset | outcome | seconds |\n|---|---|---|\n"
+               "| `a_data` | ok | 3 |\n| `b_ppo` | ok | 9 |\n")
+    bench.write_text(f"# B\n{begin}\n{section}{end}\n")
+    assert profile_costs.smoke_timing(bench) == (2.6, "2026-11-21", "2", 2)
+    bench.write_text(f"# B\n{begin}\n{section.replace('Measured: 2026-11-21  ', '')}{end}\n")
+    with pytest.raises(ValueError, match="Measured:"):
+        profile_costs.smoke_timing(bench)
+    monkeypatch.setattr(profile_costs, "FRESH_RUNS", tmp_path)  # a runs dir with trials of this machine
+    with pytest.raises(ValueError, match="exists"):
+        profile_costs.build_profiles()

@@ -15,7 +15,7 @@ from plls_bench.envs.evaluation import run_episodes
 from plls_bench.film import film_run
 from plls_bench.pipeline import record_export as export
 from plls_bench.pipeline.execute import execute
-from plls_bench.pipeline.record_export import export_records
+from plls_bench.pipeline.record_export import REPLAY_NOT_CARRIED, export_records
 from plls_bench.rundirs.record_layout import MAX_FILE_BYTES, PARTIAL_DIR, PENDING_DIR, RECORDS_BUDGET_BYTES
 from plls_bench.rundirs.run_dir import run_dir_path
 from plls_bench.train.checkpoint import OPTIMIZER_ENTRY, without_optimizer_state
@@ -81,24 +81,30 @@ def test_committed_ppo_policies_carry_no_optimiser_state() -> None:
 
 def test_a_stopped_cnn_ppo_trial_is_carried_and_a_dbc_snapshot_is_not(tmp_path: Path) -> None:
     """At the real sizes: a CarRacing CNN PPO zip with Adam's moments (9.6 MiB) goes to a partial
-    record; a state-SAC dbc.pt (45 MiB) stays behind, its metrics written as a pending record."""
+    record; a state-SAC dbc.pt (45 MiB) stays behind, its metrics written as a pending record. A
+    DBC-runner snapshot holds a replay buffer, so it is never carried, however small: pixel DBC,
+    pixel SAC and state SAC alike leave only their metrics so far."""
     runs = tmp_path / "results" / "runs"
     ppo, _ = make_run(runs, "carracing_ppo", 0)
     ppo.log("eval", {"iteration": 0, "return_mean": 0.0})
     ppo.write_bytes("checkpoints/ppo-0000003.zip", b"w" * 10_062_095)
     ppo.write_json("checkpoints/latest.json", {"model": "ppo-0000003.zip", "normalization": None,
                                                "progress": {"iteration": 3}, "rng": {}})
-    sac, _ = make_run(runs, "cheetah_sac_state", 0)
-    sac.log("eval", {"iteration": 0, "return_mean": 0.0})
-    sac.write_json("checkpoints/progress.json", {"iteration": 50, "agent_steps": 50, "replay_written": 0})
-    sac.write_bytes("checkpoints/dbc.pt", b"w" * 45 * 2**20)
+    sizes = {"cheetah_sac_state": 45 * 2**20, "cheetah_dbc": 2**10, "cheetah_sac_pixel": 2**10}
+    for experiment, size in sizes.items():
+        run, _ = make_run(runs, experiment, 0)
+        run.log("eval", {"iteration": 0, "return_mean": 0.0})
+        run.write_bytes("checkpoints/replay/chunk_000000000000_000000000051.npz", b"r" * 1000)
+        run.write_json("checkpoints/progress.json", {"iteration": 50, "agent_steps": 50, "replay_written": 51})
+        run.write_bytes("checkpoints/dbc.pt", b"w" * size)
     done = export_records(runs)
     assert done.partial == ["carracing_ppo/default/seed=0"]
-    assert done.pending == ["cheetah_sac_state/default/seed=0"]
-    assert "over the 16 MiB of a partial record" in " ".join(done.skipped)
+    assert sorted(done.pending) == sorted(f"{experiment}/default/seed=0" for experiment in sizes)
+    assert sorted(done.skipped) == sorted(f"{experiment}/default/seed=0: status running ({REPLAY_NOT_CARRIED})"
+                                          for experiment in sizes)
     records = tmp_path / "results" / "records"
-    assert not list((records / PENDING_DIR).rglob("*.pt"))
-    assert not (records / PARTIAL_DIR / "cheetah_sac_state").exists()
+    assert not [p for p in (records / PENDING_DIR).rglob("*") if p.is_file() and "checkpoints" in p.parts]
+    assert sorted(p.name for p in (records / PARTIAL_DIR).iterdir()) == ["carracing_ppo"]
 
 
 def test_no_tracked_file_and_not_the_records_outgrow_their_caps() -> None:

@@ -1,7 +1,8 @@
-"""Pending records: an unfinished trial whose checkpoint is over the cap of a partial record (a
-pixel DBC's) leaves its metrics so far in the records, so a lost machine does not take its curve along.
-The record is evidence only: it keeps the furthest attempt, no run resumes from it, the dry run
-names it beside a trial that is behind it, and the finished record replaces it."""
+"""Pending records: an unfinished trial whose checkpoint is not carried (a DBC-runner trial, whose
+snapshot holds a replay buffer, or one over the cap of a partial record) leaves its metrics so far
+in the records, so a lost machine does not take its curve along. The record is evidence only: it
+keeps the furthest attempt, no run resumes from it, the dry run names it beside a trial that is
+behind it, and the finished record replaces it."""
 from __future__ import annotations
 
 import shutil
@@ -12,7 +13,7 @@ import pytest
 from plls_bench.core.atomic_files import read_json, read_jsonl
 from plls_bench.pipeline import record_export as export
 from plls_bench.pipeline.plan import plan_profile
-from plls_bench.pipeline.record_export import export_records
+from plls_bench.pipeline.record_export import REPLAY_NOT_CARRIED, export_records
 from plls_bench.pipeline.record_export import main as records_main
 from plls_bench.reproduce import format_plan
 from plls_bench.rundirs.record_layout import PARTIAL_DIR, PENDING_DIR
@@ -20,12 +21,6 @@ from plls_bench.rundirs.run_dir import Run
 from tests.synthetic_runs import finish, make_run
 
 KEY = "cheetah_dbc/default/seed=0"
-
-
-@pytest.fixture
-def small_cap(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A whole-record cap that a 64 KiB checkpoint passes, as a pixel DBC's 116+ MiB passes 16 MiB."""
-    monkeypatch.setattr(export, "MAX_PARTIAL_BYTES", 2**15)
 
 
 def _trained_to(run: Run, iterations: range) -> Run:
@@ -40,24 +35,24 @@ def _trained_to(run: Run, iterations: range) -> Run:
     return run
 
 
-def test_an_uncarried_trial_leaves_its_metrics_as_a_pending_record(tmp_path: Path, small_cap: None) -> None:
+def test_an_uncarried_trial_leaves_its_metrics_as_a_pending_record(tmp_path: Path) -> None:
     runs = tmp_path / "results" / "runs"
     run = _trained_to(make_run(runs, "cheetah_dbc", 0)[0], range(0, 60, 10))
     done = export_records(runs)
     pending = tmp_path / "results" / "records" / PENDING_DIR / KEY
     assert done.pending == [KEY] and done.partial == []
-    assert done.skipped[0].startswith(f"{KEY}: status running (0.1 MiB to carry, over the 0 MiB")
+    assert done.skipped == [f"{KEY}: status running ({REPLAY_NOT_CARRIED})"], "carried at no size"
     assert read_jsonl(pending / "metrics" / "eval.jsonl") == read_jsonl(run.path / "metrics" / "eval.jsonl")
     marker = read_json(pending / "pending.json")
     assert marker["iteration"] == 50 and marker["resumable"] is False and marker["state"] == "running"
-    assert "over the 0 MiB of a partial record" in marker["not_carried"]
+    assert marker["not_carried"] == REPLAY_NOT_CARRIED
     assert not (pending / "checkpoints").exists(), "metrics only: the checkpoint stays in the run dir"
     assert not (tmp_path / "results" / "records" / PARTIAL_DIR).exists()
     assert export_records(runs).unchanged == 1, "the same run exports the same record"
 
 
 def test_a_pending_record_keeps_the_furthest_attempt_and_the_dry_run_names_it(
-        tmp_path: Path, small_cap: None) -> None:
+        tmp_path: Path) -> None:
     runs = tmp_path / "results" / "runs"
     _trained_to(make_run(runs, "cheetah_dbc", 0)[0], range(0, 60, 10))
     export_records(runs)
@@ -83,7 +78,7 @@ def test_a_pending_record_keeps_the_furthest_attempt_and_the_dry_run_names_it(
     assert plan_profile("quick", str(runs), only=["cheetah_dbc"], rates={})[0].trials[0].lost_at == 0
 
 
-def test_a_finished_trial_replaces_its_pending_record(tmp_path: Path, small_cap: None,
+def test_a_finished_trial_replaces_its_pending_record(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     runs = tmp_path / "results" / "runs"
     run, cfg = make_run(runs, "cheetah_dbc", 0)
@@ -98,16 +93,16 @@ def test_a_finished_trial_replaces_its_pending_record(tmp_path: Path, small_cap:
     assert not (records / PENDING_DIR).exists(), "no empty pending/ folders are left behind"
 
 
-def test_a_run_without_metrics_writes_no_pending_record(tmp_path: Path, small_cap: None) -> None:
+def test_a_run_without_metrics_writes_no_pending_record(tmp_path: Path) -> None:
     runs = tmp_path / "results" / "runs"
     make_run(runs, "cheetah_dbc", 0)
     done = export_records(runs)
-    assert done.pending == [] and done.skipped == [f"{KEY}: status running (no checkpoint to carry)"]
+    assert done.pending == [] and done.skipped == [f"{KEY}: status running ({REPLAY_NOT_CARRIED})"]
     assert not (tmp_path / "results" / "records").exists()
 
 
 def test_a_carried_run_behind_a_pending_record_leaves_it_until_it_passes_it(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, dbc_carried: None) -> None:
     """The attempt lost with its machine reached 50; the trial restarted under a cap that carries
     it: its partial record is written, and the pending record stays until the run passes 50."""
     runs = tmp_path / "results" / "runs"

@@ -86,8 +86,8 @@ def test_carracing_plain_ppo_is_four_conv_two_fc_as_configured() -> None:
     (["+experiment=carracing_plls_ppo"], 4354),
 ], ids=["plain_ppo", "pl_ls"])
 def test_policy_sizes_are_half_of_table_3(overrides: list[str], paper_trainable: int) -> None:
-    """Table 3 counts two copies of each policy (current and old, see README); one copy of ours
-    has exactly half its trainable parameters."""
+    """Table 3 counts two copies of each policy (current and old, see docs/methods.md, "Parameter
+    counts (Table 3)"); one copy of ours has exactly half its trainable parameters."""
     policy = build_policy(compose([*overrides, "budget=paper"]))
     assert 2 * sum(p.numel() for p in policy.parameters()) == paper_trainable
 

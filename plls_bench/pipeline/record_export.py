@@ -33,6 +33,10 @@ from plls_bench.rundirs.record_pending import pending_marker, reached_iteration,
 from plls_bench.rundirs.record_snapshot import Content, checkpoint_snapshot, record_files
 from plls_bench.rundirs.run_dir import STATUS_DONE, iter_run_dirs, stored_identity
 
+# Why a stopped run of a runner whose snapshot holds a replay buffer (DBC, pixel and state SAC) is
+# never a partial record (RunnerSpec.snapshot_holds_replay): its metrics go to a pending record.
+REPLAY_NOT_CARRIED = ("its snapshot holds a replay buffer: never carried; it resumes from its run dir on "
+                      "the machine that runs it")
 
 @dataclass
 class Exported:
@@ -121,10 +125,13 @@ def split_parts(rel: str, content: Content) -> tuple[dict[str, bytes], dict[str,
 def export_partial(run_dir: Path, target: Path, config: dict[str, Any]) -> tuple[bool, list[str]] | str:
     """An unfinished run's partial record: its files so far, the last checkpoint that resumes it
     (``RunnerSpec.load_resume_files``; a file over the cap in parts) and ``partial.json`` (what to
-    copy back, commit file last); a reason string when it cannot be carried."""
+    copy back, commit file last); a reason string when it cannot be carried: its runner's snapshot
+    holds a replay buffer (``RunnerSpec.snapshot_holds_replay``), or it is over MAX_PARTIAL_BYTES."""
     spec = RUNNERS.get(config.get("runner") or "")
     if spec is None or spec.load_resume_files is None:
         return spec.not_carried if spec else f"runner {config.get('runner')!r} is not registered"
+    if spec.snapshot_holds_replay:
+        return REPLAY_NOT_CARRIED
     snapshot = checkpoint_snapshot(run_dir, spec.load_resume_files(), MAX_PARTIAL_BYTES)
     if isinstance(snapshot, str):
         return snapshot

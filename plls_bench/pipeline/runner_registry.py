@@ -56,10 +56,16 @@ class RunnerSpec:
     iteration_keys: tuple[str, ...] = ()
     # What its committed records carry: its policy's files (``load_policy_files``; None: none), and
     # for an unfinished run the checkpoint that resumes it (``load_resume_files``; None: unfinished
-    # runs are not carried, ``not_carried`` says why).
+    # runs are not carried, ``not_carried`` says why). The same files resume a run from its own run
+    # dir (plan._resume_point), so a runner that is never carried may still list them.
     load_policy_files: Callable[[], PolicyFiles] | None = None
     load_resume_files: Callable[[], ResumeFiles] | None = None
     not_carried: str = "no checkpoint to carry"
+    # Its checkpoint holds a replay buffer (and the optimisers of several networks): a stopped run
+    # is never carried as a partial record, whatever its size, since a record of it would grow with
+    # every sitting that every clone downloads. It resumes from its run dir on the machine that ran
+    # it; the export writes its metrics so far as a pending record (pipeline/record_export.py).
+    snapshot_holds_replay: bool = False
     # Trains in the skeleton of ``train/loop.py``, so ``time_limit_min`` stops it at a checkpoint;
     # the other runners run to their end (a launch with a deadline starts one only with time for it).
     time_limited: bool = False
@@ -161,8 +167,8 @@ SPECS: tuple[RunnerSpec, ...] = (
     # one DBC iteration: one agent step (action repeat frames) and its update
     RunnerSpec("dbc", _dbc, order=3, measure="dbc_steps", trains_policy=True, load_policy=_dbc_policy,
                iteration_unit="iteration (agent steps)", load_policy_files=_dbc_policy_files,
-               # pixel DBC's and state SAC's checkpoints are over MAX_PARTIAL_BYTES
-               load_resume_files=_dbc_checkpoint, time_limited=True,
+               # resumes from its own run dir only: agent, optimisers and frame replay stay there
+               load_resume_files=_dbc_checkpoint, snapshot_holds_replay=True, time_limited=True,
                checkpoints_at="episode", burst=_dbc_burst),
 )
 RUNNERS: dict[str, RunnerSpec] = {spec.name: spec for spec in SPECS}

@@ -9,6 +9,9 @@ from collections import Counter
 from pathlib import Path
 
 from plls_bench.core.atomic_files import atomic_write_bytes
+from plls_bench.report.profile_costs import END as PROFILES_END
+from plls_bench.report.profile_costs import START as PROFILES_START
+from plls_bench.report.profile_costs import build_profiles
 
 REPO = Path(__file__).resolve().parents[2]
 FRONT_PAGE = REPO / "README.md"
@@ -73,22 +76,31 @@ def build_headline(results_dir: Path) -> str:
 
 
 def with_headline(page: str, block: str) -> str:
-    """``page`` with the text between its markers replaced by ``block``; ValueError without them."""
-    start, end = page.find(START), page.find(END)
+    """``page`` with the text between its headline markers replaced by ``block``; ValueError without them."""
+    return with_block(page, block, START, END)
+
+
+def with_block(page: str, block: str, start_marker: str, end_marker: str) -> str:
+    """``page`` with the text from ``start_marker`` to ``end_marker`` replaced by ``block`` (which
+    holds both markers); ValueError without them."""
+    start, end = page.find(start_marker), page.find(end_marker)
     if start < 0 or end < start:
-        raise ValueError(f"the front page has no `{START}` ... `{END}` block")
-    return page[:start] + block + page[end + len(END):]
+        raise ValueError(f"the front page has no `{start_marker}` ... `{end_marker}` block")
+    return page[:start] + block + page[end + len(end_marker):]
 
 
 def write_front_page(out_dir: Path) -> bool:
-    """Rewrite the README's headline when ``out_dir`` is this checkout's ``results/`` (not a smoke
-    or test output folder) and the README holds the markers; True when it was written."""
+    """Rewrite the README's headline (and its profile table, :mod:`profile_costs`) when ``out_dir`` is
+    this checkout's ``results/`` (not a smoke or test output folder) and the README holds the
+    markers; True when it was written."""
     if Path(out_dir).resolve() != RESULTS or not FRONT_PAGE.is_file():
         return False
     page = FRONT_PAGE.read_text()
     if START not in page:
         return False
     updated = with_headline(page, build_headline(RESULTS))
+    if PROFILES_START in updated:  # the profile table, planned from the committed inputs alone
+        updated = with_block(updated, build_profiles(), PROFILES_START, PROFILES_END)
     if updated != page:
         atomic_write_bytes(FRONT_PAGE, updated.encode())
     return True

@@ -23,21 +23,32 @@ from plls_bench.rundirs.run_dir import STATUS_DONE, Run, stored_identity
 # Adam's moments, as a partial record carries it. .ci/run fails on any tracked file over it.
 MAX_FILE_BYTES = 16 * 1024 * 1024
 # A partial record carries a whole checkpoint, so it is carried only while small: a stopped CNN PPO
-# trial (its 9.6 MiB zip with Adam's moments and its metrics, about 10 MiB) fits; a stopped pixel
-# DBC trial (a 116 MiB agent with optimisers plus its frame replay, 3.2 MiB per 1000 transitions)
-# or state-SAC trial (a 45 MiB dbc.pt) does not, and stays in its run dir on the machine that runs
-# it, with its metrics so far written as a pending record. Carrying pixel DBC cost git history
+# trial (its 9.6 MiB zip with Adam's moments and its metrics, about 10 MiB) fits. A stopped
+# DBC-runner trial is never carried, whatever its size (RunnerSpec.snapshot_holds_replay: its
+# snapshot holds a replay buffer; at reference sizes a pixel DBC's 116 MiB agent with optimisers
+# plus its frame replay, 3.2 MiB per 1000 transitions, or a state SAC's 45 MiB dbc.pt, are over
+# this cap too): it stays in its run dir on the machine that runs it, with its metrics so far
+# written as a pending record. Carrying pixel DBC cost git history
 # about 120 MiB per 3-hour sitting; every user of a clone paid for it. A file over MAX_FILE_BYTES
 # still goes in parts (``<name>.part-<i>``) should the cap be raised, and older records in parts
 # still restore.
 MAX_PARTIAL_BYTES = 16 * 1024 * 1024
-# What the tracked files under results/records may weigh together (.ci/run fails past it). 128 MiB
-# today (34 PPO zips without optimiser state, 21 MiB; 10 DBC / SAC actors, 72 MiB; V_s / V_a 8 MiB;
-# metrics and filmstrips); the quick profile's missing trials add about 30 MiB (two PL-LS + DBC
-# actors of 12 MiB, MountainCar trials of 1-2 MiB), so 192 MiB leaves a fifth for partial CNN PPO
-# records on top. Recording the paper profile (40 CarRacing and 10 pixel DBC trials) needs a
-# decision to raise it, not a silent growth of every clone.
-RECORDS_BUDGET_BYTES = 192 * 1024 * 1024
+# What the tracked files under results/records may weigh together (.ci/run fails past it), sized for
+# the quick profile's completion (measured 2026-12-05 at faf36b2: `git ls-files -z results/records |
+# xargs -0 du -cb`, and the quick dry run's 64 pending trials). Today 135.6 MiB: 4 pixel DBC / PL-LS +
+# DBC actors of 11.9 MiB (dbc_policy.pt: the actor's conv encoder and MLP trunk alone, 3.1 M fp32
+# parameters) and 6 state-SAC actors of 4.1 MiB, 73 MiB; 6 CNN PPO zips without optimiser state,
+# 20 MiB; V_s / V_a 8 MiB; MountainCar metrics and zips 1.2-1.8 MiB a trial. Finishing quick adds,
+# per record as measured: 5 pixel actors (2 PL-LS + DBC, 3 pixel SAC, whose actor is DBC's)
+# x 12.05 = 60.3; 9 CNN PPO (2 ppo, 2 ppo_va, 5 gSDE) x 3.41 = 30.7; 2 state SAC x 4.18 = 8.4;
+# 5 MountainCar zoo x 1.47 = 7.4; 19 latent CarRacing PPO x 0.3 = 5.7; 3 cheetah V_a x 0.15 = 0.5
+# (the 3 DBC, 1 PL-LS + DBC and 16 MountainCar re-runs replace records of their own size): 113 MiB,
+# so about 249 MiB at completion, 57% of it DBC / SAC actors. 288 MiB leaves 39 MiB (16%): two
+# stopped CNN PPO trials carried as partial records (10 MiB each, one per job of a 2-job sitting)
+# and 19 MiB for the estimates' error. Recording the paper profile (30 CNN PPO trials, 13 pixel
+# DBC / SAC actors: about 260 MiB of policies) needs a decision to raise it, not a silent growth
+# of every clone.
+RECORDS_BUDGET_BYTES = 288 * 1024 * 1024
 PART_SUFFIX = ".part-"
 EXCLUDED_BUDGETS = ("smoke",)  # smoke runs check the pipeline, not the paper
 PARTIAL_DIR = "partial"
