@@ -56,7 +56,13 @@ def test_compare_arms_reads_direction_and_equivalence() -> None:
     assert compare_arms([1.0, 2.0, 3.0, 4.0, 5.1], [1.0, 2.0, 3.0, 4.0, 5.0], margin=3.0).outcome == EQUIVALENT
     assert compare_arms([1.0, 2.0, 3.0, 4.0, 5.1], [1.0, 2.0, 3.0, 4.0, 5.0]).outcome == UNDECIDED
     row_ = compare_arms(high, low)
-    assert row_.text == f"Welch t = 10.00, p = 0.0079 (permutation; t-distribution {row_.p_welch:.2g})"
+    assert row_.text == ("Welch t = 10.00, p = 0.0079 (the larger of permutation 0.0079 and "
+                         f"t-distribution {row_.p_welch:.2g})")
+    # spreads 100 times apart: every split but the observed one and its mirror is less extreme (p = 2 / 252),
+    # while the t distribution, with about 4 df, is not so sure; the decision reads the larger p
+    unequal = compare_arms([1.0, 5.0, 9.0, 2.0, 12.0], [0.05, -0.05, 0.0, 0.01, -0.01])
+    assert unequal.p_permutation == pytest.approx(2 / 252)
+    assert unequal.p == unequal.p_welch == pytest.approx(0.0496, abs=1e-4)
     with pytest.raises(ValueError, match="direction must be one of"):
         compare_arms(low, high, direction="up")
 

@@ -78,7 +78,7 @@ def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> Non
     assert row["verdict"] == "reproduced", row["reason"]
     assert row["reason"] == "Holm-adjusted p = 0.0079 over 1 primary comparisons <= 0.05, in the claim's direction"
     assert row["budget"].startswith("quick (5 + 5 + 5 + 5 + 5 trials), at ")
-    assert "v=64 102 vs 32, Welch t = 70.00, p = 0.0079 (permutation;" in row["suite"]
+    assert "v=64 102 vs 32, Welch t = 70.00, p = 0.0079 (the larger of permutation 0.0079" in row["suite"]
     assert "rliable P = 1 [1, 1]" in row["suite"]
     render_all(runs, tmp_path / "out", only=["sweep_ne"])
     data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv")
