@@ -1,11 +1,13 @@
 """The declared decision protocol's pieces (plls_bench/report/evidence/protocol.py, docs/verdicts.md) against
-independent computations, the claims' settings file rejecting a typo by name, and the rows that say
+independent computations, the claims' settings file rejecting a typo, a comparison row without its
+settings and an anchor without its declared dispersion by name, and the rows that say
 why they cannot be read: neither arm solves the task; an arm mixes commits and devices."""
 from __future__ import annotations
 
 import itertools
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -92,6 +94,37 @@ def test_a_typo_in_claims_yaml_fails_naming_the_key(tmp_path: Path) -> None:
     (paper / "claims.yaml").write_text(text.replace('"PPO has the larger variance on CarRacing":',
                                                     '"PPO has the larger varianse on CarRacing":'))
     with pytest.raises(ValueError, match="comparisons: not a claim of claims.csv: 'PPO has the larger varianse"):
+        read_claims(paper)
+
+
+def test_a_comparison_row_without_its_settings_is_refused_naming_it(tmp_path: Path) -> None:
+    paper = _paper_copy(tmp_path)
+    text = (paper / "claims.yaml").read_text()
+    entry = ('  "PPO has the larger variance on CarRacing":\n'
+             "    {margin: null, planned_n: 10, primary: true, paper_n: 10}\n")
+    assert entry in text
+    (paper / "claims.yaml").write_text(text.replace(entry, ""))
+    with pytest.raises(ValueError, match=r"comparisons: no entry for the std_gap row 'PPO has the larger variance on "
+                                         r"CarRacing' \(every comparison row declares margin, planned_n"):
+        read_claims(paper)
+
+
+def test_every_published_anchor_declares_its_dispersion_and_threshold(tmp_path: Path) -> None:
+    read_claims(PAPER_DIR)  # the repository's own rows pass: every final return with a ± is declared
+    paper = _paper_copy(tmp_path)
+    pixel = "Suite pixel SAC reaches CURL's Pixel SAC on cheetah-run at 100k env steps (final return)"
+    yaml_text, csv_text = (paper / "claims.yaml").read_text(), (paper / "claims.csv").read_text()
+    entry = f'  "{pixel}":\n    {{dispersion: seeds, n: 10}}'
+    assert entry in yaml_text and ",197,15,at_least,182," in csv_text
+    (paper / "claims.yaml").write_text(yaml_text.replace(entry, ""))
+    with pytest.raises(ValueError, match=f"anchors: no entry for {re.escape(repr(pixel))}: its published ±"):
+        read_claims(paper)
+    (paper / "claims.yaml").write_text(yaml_text.replace(entry, entry.replace("seeds, n: 10", "episodes, n: null")))
+    with pytest.raises(ValueError, match="threshold 182, but 197 ± 15 over episodes implies 197"):
+        read_claims(paper)  # an SD over episodes says nothing about seeds: the published mean is the bar
+    (paper / "claims.yaml").write_text(yaml_text)
+    (paper / "claims.csv").write_text(csv_text.replace(",197,15,at_least,182,", ",197,15,at_least,190,"))
+    with pytest.raises(ValueError, match="threshold 190, but 197 ± 15 over seeds implies 182"):
         read_claims(paper)
 
 

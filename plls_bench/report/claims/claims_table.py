@@ -30,7 +30,7 @@ from plls_bench.core.metric_rows import POLICIES
 from plls_bench.report.claims.compare import ahead_point, comparison_verdict, p_improvement, std_gap
 from plls_bench.report.claims.costs import undecided_cost
 from plls_bench.report.claims.levels import convergence_point, final_return
-from plls_bench.report.claims.settings import ClaimSettings, load_settings
+from plls_bench.report.claims.settings import ClaimSettings, check_rows, load_settings
 from plls_bench.report.claims.sweep import sweep_best
 from plls_bench.report.claims.values import param_count, repr_mse, steps_to_goal, study_metric
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
@@ -151,7 +151,8 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     _check_chains(rows, paper_dir)
-    load_settings(paper_dir, [row["claim"] for row in rows])  # claims.yaml names only these rows
+    # claims.yaml names only these rows, and every comparison and published anchor among them
+    check_rows(load_settings(paper_dir, [row["claim"] for row in rows]), rows, paper_dir)
     return rows
 
 
