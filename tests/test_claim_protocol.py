@@ -9,14 +9,16 @@ import json
 import math
 import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from plls_bench.report.claims.claims_table import read_claims
+from plls_bench.report.claims.claims_table import read_claims, reading_summary
 from plls_bench.report.claims.levels import least_trials, median_interval
+from plls_bench.report.claims.settings import load_settings
 from plls_bench.report.collect import PAPER_DIR
 from plls_bench.report.evidence.protocol import (
     A_BETTER,
@@ -29,6 +31,7 @@ from plls_bench.report.evidence.protocol import (
     t_interval,
     welch,
 )
+from plls_bench.report.evidence.verdicts import NOT_MADE, NOT_RUN, NOT_SOLVED
 from tests.test_report_matched import arm, claims, row
 
 
@@ -126,6 +129,20 @@ def test_every_published_anchor_declares_its_dispersion_and_threshold(tmp_path: 
     (paper / "claims.csv").write_text(csv_text.replace(",197,15,at_least,182,", ",197,15,at_least,190,"))
     with pytest.raises(ValueError, match="threshold 190, but 197 ± 15 over seeds implies 182"):
         read_claims(paper)
+
+
+def test_only_decided_readings_that_differ_count_as_depending_on_the_reading() -> None:
+    settings = replace(load_settings(PAPER_DIR, [c["claim"] for c in read_claims(PAPER_DIR)]), readings=[
+        ("exploration", ("a", "b")), ("exploration", ("c", "d")), ("mode", ("e", "f")), ("mode", ("g", "h", "i"))])
+    final = {name: (verdict, "") for name, verdict in {
+        "a": "reproduced", "b": "not reproduced",  # decided both ways: depends
+        "c": NOT_MADE, "d": NOT_RUN,  # nothing decided yet: not comparable, not a disagreement
+        "e": "inconclusive", "f": "inconclusive",  # decided, agreeing
+        "g": "reproduced", "h": NOT_SOLVED, "i": NOT_RUN}.items()}  # one decided: not comparable
+    assert reading_summary(settings, final) == (
+        "1 of 4 claims read more than one way depend on the reading, two readings decided (reproduced, not "
+        "reproduced, inconclusive) and differing (exploration 1 of 2, mode 0 of 2); 2 are not yet comparable, "
+        "fewer than two readings decided")
 
 
 def test_a_comparison_where_neither_arm_solves_the_task_is_not_made(tmp_path: Path) -> None:

@@ -40,10 +40,12 @@ from plls_bench.report.evidence.protocol import adjust, holm
 from plls_bench.report.evidence.returns import DEFAULT_X_AXIS
 from plls_bench.report.evidence.table_formats import NA, Table, fmt, read_paper
 from plls_bench.report.evidence.verdicts import (
+    INCONCLUSIVE,
     NOT_MADE,
     NOT_REPRODUCED,
     NOT_RUN,
     NOT_SOLVED,
+    REPRODUCED,
     RULES,
     VERDICTS,
     Estimate,
@@ -186,17 +188,24 @@ def holm_judged(claims: list[dict[str, str]], judged: dict[str, Judged], setting
     return out
 
 
+DECIDED = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE)  # verdicts on the data; not run / not made say nothing yet
+
+
 def reading_summary(settings: ClaimSettings, final: dict[str, tuple[str, str]]) -> str:
-    """How many claims read more than one way have a verdict that depends on the reading."""
+    """How many claims read more than one way depend on the reading: at least two of its readings
+    have decided verdicts (:data:`DECIDED`) that differ. "Not run" against "not made" is no
+    disagreement: such claims are counted apart, as not yet comparable."""
     depends: dict[str, int] = {}
+    pending = 0
     for reading, rows in settings.readings:
-        depends.setdefault(reading, 0)
-        depends[reading] += len({final[row][0] for row in rows}) > 1
-    total = sum(depends.values())
+        decided = [final[row][0] for row in rows if final[row][0] in DECIDED]
+        depends[reading] = depends.get(reading, 0) + (len(set(decided)) > 1)
+        pending += len(decided) < 2
     per = ", ".join(f"{reading} {n} of {sum(r == reading for r, _ in settings.readings)}"
                     for reading, n in depends.items())
-    return (f"{total} of {len(settings.readings)} claims read more than one way have verdicts that depend on the "
-            f"reading ({per})")
+    return (f"{sum(depends.values())} of {len(settings.readings)} claims read more than one way depend on the "
+            f"reading, two readings decided ({', '.join(DECIDED)}) and differing ({per}); {pending} are not yet "
+            "comparable, fewer than two readings decided")
 
 
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
