@@ -1,20 +1,24 @@
 """The declared decision protocol's pieces (plls_bench/report/evidence/protocol.py, docs/verdicts.md) against
-independent computations, the claims' settings file rejecting a typo by name, and the rows that say
+independent computations, the claims' settings file rejecting a typo, a comparison row without its
+settings and an anchor without its declared dispersion by name, and the rows that say
 why they cannot be read: neither arm solves the task; an arm mixes commits and devices."""
 from __future__ import annotations
 
 import itertools
 import json
 import math
+import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from plls_bench.report.claims.claims_table import read_claims
+from plls_bench.report.claims.claims_table import read_claims, reading_summary
 from plls_bench.report.claims.levels import least_trials, median_interval
+from plls_bench.report.claims.settings import load_settings
 from plls_bench.report.collect import PAPER_DIR
 from plls_bench.report.evidence.protocol import (
     A_BETTER,
@@ -27,6 +31,7 @@ from plls_bench.report.evidence.protocol import (
     t_interval,
     welch,
 )
+from plls_bench.report.evidence.verdicts import NOT_MADE, NOT_RUN, NOT_SOLVED
 from tests.test_report_matched import arm, claims, row
 
 
@@ -56,7 +61,13 @@ def test_compare_arms_reads_direction_and_equivalence() -> None:
     assert compare_arms([1.0, 2.0, 3.0, 4.0, 5.1], [1.0, 2.0, 3.0, 4.0, 5.0], margin=3.0).outcome == EQUIVALENT
     assert compare_arms([1.0, 2.0, 3.0, 4.0, 5.1], [1.0, 2.0, 3.0, 4.0, 5.0]).outcome == UNDECIDED
     row_ = compare_arms(high, low)
-    assert row_.text == f"Welch t = 10.00, p = 0.0079 (permutation; t-distribution {row_.p_welch:.2g})"
+    assert row_.text == ("Welch t = 10.00, p = 0.0079 (the larger of permutation 0.0079 and "
+                         f"t-distribution {row_.p_welch:.2g})")
+    # spreads 100 times apart: every split but the observed one and its mirror is less extreme (p = 2 / 252),
+    # while the t distribution, with about 4 df, is not so sure; the decision reads the larger p
+    unequal = compare_arms([1.0, 5.0, 9.0, 2.0, 12.0], [0.05, -0.05, 0.0, 0.01, -0.01])
+    assert unequal.p_permutation == pytest.approx(2 / 252)
+    assert unequal.p == unequal.p_welch == pytest.approx(0.0496, abs=1e-4)
     with pytest.raises(ValueError, match="direction must be one of"):
         compare_arms(low, high, direction="up")
 
@@ -89,6 +100,51 @@ def test_a_typo_in_claims_yaml_fails_naming_the_key(tmp_path: Path) -> None:
         read_claims(paper)
 
 
+def test_a_comparison_row_without_its_settings_is_refused_naming_it(tmp_path: Path) -> None:
+    paper = _paper_copy(tmp_path)
+    text = (paper / "claims.yaml").read_text()
+    entry = ('  "PPO has the larger variance on CarRacing":\n'
+             "    {margin: null, planned_n: 10, primary: true, paper_n: 10}\n")
+    assert entry in text
+    (paper / "claims.yaml").write_text(text.replace(entry, ""))
+    with pytest.raises(ValueError, match=r"comparisons: no entry for the std_gap row 'PPO has the larger variance on "
+                                         r"CarRacing' \(every comparison row declares margin, planned_n"):
+        read_claims(paper)
+
+
+def test_every_published_anchor_declares_its_dispersion_and_threshold(tmp_path: Path) -> None:
+    read_claims(PAPER_DIR)  # the repository's own rows pass: every final return with a ± is declared
+    paper = _paper_copy(tmp_path)
+    pixel = "Suite pixel SAC reaches CURL's Pixel SAC on cheetah-run at 100k env steps (final return)"
+    yaml_text, csv_text = (paper / "claims.yaml").read_text(), (paper / "claims.csv").read_text()
+    entry = f'  "{pixel}":\n    {{dispersion: seeds, n: 10}}'
+    assert entry in yaml_text and ",197,15,at_least,182," in csv_text
+    (paper / "claims.yaml").write_text(yaml_text.replace(entry, ""))
+    with pytest.raises(ValueError, match=f"anchors: no entry for {re.escape(repr(pixel))}: its published ±"):
+        read_claims(paper)
+    (paper / "claims.yaml").write_text(yaml_text.replace(entry, entry.replace("seeds, n: 10", "episodes, n: null")))
+    with pytest.raises(ValueError, match="threshold 182, but 197 ± 15 over episodes implies 197"):
+        read_claims(paper)  # an SD over episodes says nothing about seeds: the published mean is the bar
+    (paper / "claims.yaml").write_text(yaml_text)
+    (paper / "claims.csv").write_text(csv_text.replace(",197,15,at_least,182,", ",197,15,at_least,190,"))
+    with pytest.raises(ValueError, match="threshold 190, but 197 ± 15 over seeds implies 182"):
+        read_claims(paper)
+
+
+def test_only_decided_readings_that_differ_count_as_depending_on_the_reading() -> None:
+    settings = replace(load_settings(PAPER_DIR, [c["claim"] for c in read_claims(PAPER_DIR)]), readings=[
+        ("exploration", ("a", "b")), ("exploration", ("c", "d")), ("mode", ("e", "f")), ("mode", ("g", "h", "i"))])
+    final = {name: (verdict, "") for name, verdict in {
+        "a": "reproduced", "b": "not reproduced",  # decided both ways: depends
+        "c": NOT_MADE, "d": NOT_RUN,  # nothing decided yet: not comparable, not a disagreement
+        "e": "inconclusive", "f": "inconclusive",  # decided, agreeing
+        "g": "reproduced", "h": NOT_SOLVED, "i": NOT_RUN}.items()}  # one decided: not comparable
+    assert reading_summary(settings, final) == (
+        "1 of 4 claims read more than one way depend on the reading, two readings decided (reproduced, not "
+        "reproduced, inconclusive) and differing (exploration 1 of 2, mode 0 of 2); 2 are not yet comparable, "
+        "fewer than two readings decided")
+
+
 def test_a_comparison_where_neither_arm_solves_the_task_is_not_made(tmp_path: Path) -> None:
     # MountainCar's solve criterion is 90 (claims.yaml, solved_at): returns near 0 never reach the flag
     text = "PL-LS with PPO beats PPO on MountainCar (final return) [Gaussian"
@@ -111,5 +167,7 @@ def test_an_arm_that_mixes_commits_and_devices_says_so(tmp_path: Path) -> None:
         provenance = json.loads(path.read_text())
         provenance.update(device_resolved="cpu" if seed < 2 else "cuda:0", git_sha="a" * 40 if seed < 2 else "b" * 40)
         path.write_text(json.dumps(provenance))
-    beats = row(claims(runs, tmp_path / "out"), "PL-LS with PPO beats PPO on CarRacing (final return)")
-    assert beats["budget"].endswith("; carracing_ppo pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3, 4 (cuda, bbbbbbb)")
+    table = claims(runs, tmp_path / "out")
+    mix = "; carracing_ppo pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3, 4 (cuda, bbbbbbb)"
+    assert row(table, "PL-LS with PPO beats PPO on CarRacing (final return)")["budget"].endswith(mix)
+    assert row(table, "PPO not converged by 120,000 iterations on CarRacing")["budget"].endswith(mix)  # convergence

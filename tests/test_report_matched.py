@@ -54,7 +54,7 @@ def test_arms_at_different_budgets_are_judged_at_the_common_evaluation(tmp_path:
     # the values up to iteration 10, not 202 at iteration 64; Welch's t = -60 / sqrt(2.5 / 5 + 2.5 / 5), and
     # no split of the 10 trials is more extreme than the observed one or its mirror: p = 2 / C(10, 5)
     assert beats["suite"].startswith("-8 vs 52 (final, mean of the last 3 evaluations); "
-                                     "Welch t = -60.00, p = 0.0079 (permutation;")
+                                     "Welch t = -60.00, p = 0.0079 (the larger of permutation 0.0079")
     # Holm over the tested primary comparisons (this row and the variance row, p = 1): 2 x 2 / 252
     assert beats["p_adjusted"] == pytest.approx(2 * 2 / 252)
     assert beats["reason"] == ("Holm-adjusted p = 0.016 over 2 primary comparisons <= 0.05, "

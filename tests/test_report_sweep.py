@@ -3,6 +3,7 @@
 two-value smoke sweep."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -73,13 +74,19 @@ def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> Non
     runs = tmp_path / "runs"
     for value, level in ((3, 0.0), (8, 10.0), (16, 20.0), (32, 100.0), (64, 30.0)):
         arm(runs, value, [level + k for k in range(5)], mse=0.001 * value)
+    for seed in range(5):  # N_e = 8's trials ran on two commits and devices
+        path = runs / PRESET / "repr.action.latent_dim=8" / f"seed={seed}" / "provenance.json"
+        provenance = json.loads(path.read_text())
+        provenance.update(device_resolved="cpu" if seed < 2 else "cuda:0", git_sha="a" * 40 if seed < 2 else "b" * 40)
+        path.write_text(json.dumps(provenance))
     row = claim_row(runs, tmp_path / "out")
     # every other value loses in every split of its 5 + 5 trials but the observed one's mirror: p = 2 / 252
     assert row["verdict"] == "reproduced", row["reason"]
     assert row["reason"] == "Holm-adjusted p = 0.0079 over 1 primary comparisons <= 0.05, in the claim's direction"
     assert row["budget"].startswith("quick (5 + 5 + 5 + 5 + 5 trials), at ")
-    assert "v=64 102 vs 32, Welch t = 70.00, p = 0.0079 (permutation;" in row["suite"]
+    assert "v=64 102 vs 32, Welch t = 70.00, p = 0.0079 (the larger of permutation 0.0079" in row["suite"]
     assert "rliable P = 1 [1, 1]" in row["suite"]
+    assert row["budget"].endswith("; latent_dim=8 pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3, 4 (cuda, bbbbbbb)")
     render_all(runs, tmp_path / "out", only=["sweep_ne"])
     data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv")
     final = data.query("panel == 'final'").set_index("value")
@@ -108,7 +115,9 @@ def test_claim_not_run_names_the_missing_values_and_the_trial_count(tmp_path: Pa
         arm(runs, value, [1.0, 2.0, 3.0], mse=0.01, trials=1)
     row = claim_row(runs, tmp_path / "out2")
     assert row["budget"].startswith("quick (1 + 3 + 1 + 3 + 1 trials)")  # in the order 3, 8, 16, 32, 64
-    assert (row["verdict"], row["reason"]) == ("not run at this budget", "needs 5 per arm, has 3 + 1")
+    # the hardest untested comparison stands for the row (and plans its trials): N_e = 8 ties with 32,
+    # where each one-trial value lies below 32's mean
+    assert (row["verdict"], row["reason"]) == ("not run at this budget", "needs 5 per arm, has 3 + 3")
 
 
 SMOKE = [sys.executable, "-m", "plls_bench", "-m", f"+experiment={PRESET}", "budget=smoke", "progress=false"]

@@ -30,7 +30,7 @@ from plls_bench.core.metric_rows import POLICIES
 from plls_bench.report.claims.compare import ahead_point, comparison_verdict, p_improvement, std_gap
 from plls_bench.report.claims.costs import undecided_cost
 from plls_bench.report.claims.levels import convergence_point, final_return
-from plls_bench.report.claims.settings import ClaimSettings, load_settings
+from plls_bench.report.claims.settings import ClaimSettings, check_rows, load_settings
 from plls_bench.report.claims.sweep import sweep_best
 from plls_bench.report.claims.values import param_count, repr_mse, steps_to_goal, study_metric
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
@@ -40,10 +40,12 @@ from plls_bench.report.evidence.protocol import adjust, holm
 from plls_bench.report.evidence.returns import DEFAULT_X_AXIS
 from plls_bench.report.evidence.table_formats import NA, Table, fmt, read_paper
 from plls_bench.report.evidence.verdicts import (
+    INCONCLUSIVE,
     NOT_MADE,
     NOT_REPRODUCED,
     NOT_RUN,
     NOT_SOLVED,
+    REPRODUCED,
     RULES,
     VERDICTS,
     Estimate,
@@ -151,7 +153,8 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
         if problems:
             raise ValueError(f"{paper_dir / 'claims.csv'} line {line}: unknown {', '.join(problems)}")
     _check_chains(rows, paper_dir)
-    load_settings(paper_dir, [row["claim"] for row in rows])  # claims.yaml names only these rows
+    # claims.yaml names only these rows, and every comparison and published anchor among them
+    check_rows(load_settings(paper_dir, [row["claim"] for row in rows]), rows, paper_dir)
     return rows
 
 
@@ -190,17 +193,24 @@ def holm_judged(claims: list[dict[str, str]], judged: dict[str, Judged], setting
     return out
 
 
+DECIDED = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE)  # verdicts on the data; not run / not made say nothing yet
+
+
 def reading_summary(settings: ClaimSettings, final: dict[str, tuple[str, str]]) -> str:
-    """How many claims read more than one way have a verdict that depends on the reading."""
+    """How many claims read more than one way depend on the reading: at least two of its readings
+    have decided verdicts (:data:`DECIDED`) that differ. "Not run" against "not made" is no
+    disagreement: such claims are counted apart, as not yet comparable."""
     depends: dict[str, int] = {}
+    pending = 0
     for reading, rows in settings.readings:
-        depends.setdefault(reading, 0)
-        depends[reading] += len({final[row][0] for row in rows}) > 1
-    total = sum(depends.values())
+        decided = [final[row][0] for row in rows if final[row][0] in DECIDED]
+        depends[reading] = depends.get(reading, 0) + (len(set(decided)) > 1)
+        pending += len(decided) < 2
     per = ", ".join(f"{reading} {n} of {sum(r == reading for r, _ in settings.readings)}"
                     for reading, n in depends.items())
-    return (f"{total} of {len(settings.readings)} claims read more than one way have verdicts that depend on the "
-            f"reading ({per})")
+    return (f"{sum(depends.values())} of {len(settings.readings)} claims read more than one way depend on the "
+            f"reading, two readings decided ({', '.join(DECIDED)}) and differing ({per}); {pending} are not yet "
+            "comparable, fewer than two readings decided")
 
 
 def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
@@ -234,10 +244,10 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in shown)
     caption = (f"{len(records)} claims: {summary}; {reading_summary(settings, final)}. "
                f"How verdicts are decided: docs/verdicts.md. A comparison (A beats B, A has the smaller spread) needs "
-               f"{settings.min_n} finished trials per arm; it is Welch's t with its exact permutation p, "
-               f"Holm-corrected over the primary comparisons, at alpha {settings.alpha:g}: reproduced where it "
-               "rejects in the claim's "
-               "direction, not reproduced where it rejects the other way or TOST shows the arms equivalent within "
+               f"{settings.min_n} finished trials per arm; it is Welch's t at the larger of its permutation and "
+               f"t-distribution p, Holm-corrected over the primary comparisons, at alpha {settings.alpha:g}: "
+               "reproduced where it rejects in the claim's direction, not reproduced where it rejects the other way "
+               "or TOST shows the arms equivalent within "
                "the claim's margin (results/paper/claims.yaml), inconclusive otherwise, with the trials 80% power "
                "would need. A threshold row reads a Student t interval of the mean (an order-statistic interval of "
                "the median for convergence points): entirely on the claim's side = reproduced, entirely on the "

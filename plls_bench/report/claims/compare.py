@@ -30,10 +30,11 @@ from plls_bench.report.evidence.trials import Experiment
 from plls_bench.report.evidence.verdicts import INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, NOT_SOLVED, REPRODUCED, Estimate
 
 
-def arm_mix(runs: Runs, exp: Experiment) -> str:
+def arm_mix(runs: Runs, exp: Experiment, name: str | None = None) -> str:
     """The commits and devices one arm's pooled trials ran on, when they are not all one:
-    "carracing_ppo pools seed 0 (cpu, 3b4e22a), seeds 1, 2 (cuda, 914a039)"; "" otherwise. Trials are
-    pooled only when their configs agree apart from the seed and the device (report.identity)."""
+    "carracing_ppo pools seed 0 (cpu, 3b4e22a), seeds 1, 2 (cuda, 914a039)" (``name``, default the
+    experiment's, names the arm); "" otherwise. Trials are pooled only when their configs agree apart
+    from the seed and the device (:func:`plls_bench.report.evidence.identity.pooling_identity`)."""
     groups: dict[tuple[str, str], list[int]] = {}
     for trial in exp.trials:
         prov = runs.json(exp, trial, "provenance.json") or {}
@@ -42,7 +43,7 @@ def arm_mix(runs: Runs, exp: Experiment) -> str:
     if len(groups) <= 1:
         return ""
     parts = [f"seed{'s' if len(s) > 1 else ''} {', '.join(map(str, s))} ({d}, {c})" for (d, c), s in groups.items()]
-    return f"{exp.name} pools {'; '.join(parts)}"
+    return f"{name or exp.name} pools {'; '.join(parts)}"
 
 
 def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:

@@ -165,7 +165,8 @@ def convergence_point(runs: Runs, claim: dict[str, str], settings: ClaimSettings
         raise NotJudged(f"no evaluation that every finished trial of {claim['experiment']} reaches")
     points = np.array([math.inf if (i := convergence_index(v)) is None else float(grid[i]) for v in values])
     mean_curve = convergence_index(values.mean(axis=0))
-    budget = f"{budget_text(runs, claim['experiment'], n=[len(values)])}, {at_text(curves, float(grid[-1]))}"
+    budget = (f"{budget_text(runs, claim['experiment'], n=[len(values)])}, {at_text(curves, float(grid[-1]))}"
+              f"{_mix(runs, curves)}")
     visible = float(grid[-CONVERGENCE_WINDOW]) if len(grid) >= CONVERGENCE_WINDOW else -math.inf
     shown = ", ".join(_x_text(p) for p in points)
     text = (f"per trial {shown}; mean curve {'never' if mean_curve is None else fmt(float(grid[mean_curve]))}; "

@@ -5,6 +5,7 @@ claims the paper leaves open to several readings. Read once per report, checked 
 of ``claims.csv`` so that a typo fails naming the key."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ SETTINGS_FILE = "claims.yaml"
 PROTOCOL_KEYS = ("alpha", "power", "min_n", "final_tail", "threshold_min_n", "median_coverage")
 COMPARISON_KEYS = ("margin", "planned_n", "primary", "paper_n")
 DISPERSIONS = ("seeds", "episodes")
+COMPARISON_KINDS = ("p_improvement", "std_gap", "ahead_from", "sweep_best")  # rows the Welch protocol decides
 
 
 @dataclass(frozen=True)
@@ -113,6 +115,29 @@ def load_settings(paper_dir: Path, claim_names: list[str]) -> ClaimSettings:
         {k: _comparison(v, path, f"comparisons.{k}") for k, v in comparisons.items()},
         {k: (v["dispersion"], v.get("n")) for k, v in anchors.items()},
         {k: (str(v["file"]), str(v["key"])) for k, v in gates.items()}, readings)
+
+
+def check_rows(settings: ClaimSettings, rows: list[dict[str, str]], paper_dir: Path) -> None:
+    """Every comparison row of claims.csv has its claims.yaml entry (without one it would be decided
+    outside the Holm family, with no margin or planned n), and every published final return with a
+    ± has its dispersion declared (or is a random-policy gate), with the threshold that implies."""
+    path = paper_dir / SETTINGS_FILE
+    for row in rows:
+        name = row["claim"]
+        if row["kind"] in COMPARISON_KINDS and name not in settings.comparisons:
+            raise _fail(path, "comparisons", f"no entry for the {row['kind']} row {name!r} (every comparison row "
+                                             f"declares {', '.join(COMPARISON_KEYS)})")
+        if row["kind"] != "final_return" or not row["paper_pm"] or name in settings.random_gates:
+            continue
+        if name not in settings.anchors:
+            raise _fail(path, "anchors", f"no entry for {name!r}: its published ± needs its dispersion declared")
+        dispersion, _ = settings.anchors[name]
+        value, spread = float(row["paper_value"]), float(row["paper_pm"])
+        below = row["rule"] in ("at_least", "greater_than")  # the suite must clear the anchor from below
+        implied = value - (spread if below else -spread) if dispersion == "seeds" else value
+        if not math.isclose(float(row["threshold"]), implied, rel_tol=1e-9):
+            raise ValueError(f"{paper_dir / 'claims.csv'}: {name!r}: threshold {row['threshold']}, but "
+                             f"{value:g} ± {spread:g} over {dispersion} implies {implied:g}")
 
 
 def dispersion_text(dispersion: str, n: int | None) -> str:

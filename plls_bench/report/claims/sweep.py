@@ -8,13 +8,16 @@ evaluations every finished trial of every arm reaches) are compared with v's und
 must find the base better, so the row's comparison is the least significant of them (the
 intersection-union test needs no correction among its parts); one that finds some v better
 stands for the row instead, as does the comparison with the fewest trials while any has fewer than
-the protocol's minimum. rliable's P(base > v) is shown beside each.
+the protocol's minimum (the hardest of those: the smallest standardised effect in the base's favour,
+so the power table plans for the comparison that needs the most trials). rliable's P(base > v) is
+shown beside each, and the budget names every arm that pools commits or devices.
 """
 from __future__ import annotations
 
 import math
 
 from plls_bench.pipeline.sweeps import load_sweep
+from plls_bench.report.claims.compare import arm_mix
 from plls_bench.report.claims.settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged, finished_counts, require_trials
@@ -50,13 +53,15 @@ def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Es
                                              min_n=settings.min_n), *probability_of_improvement(final[base], final[i]))
                 for i in range(len(arms)) if i != base]
     against = [c for _, c, _, _ in compared if c.outcome == B_BETTER]
-    too_few = sorted((c for _, c, _, _ in compared if c.outcome == TOO_FEW), key=lambda c: c.n_a + c.n_b)
-    row = too_few[0] if too_few else against[0] if against else max((c for _, c, _, _ in compared), key=_weakness)
+    too_few = [c for _, c, _, _ in compared if c.outcome == TOO_FEW]
+    row = max(too_few, key=_weakness) if too_few else against[0] if against else max(
+        (c for _, c, _, _ in compared), key=_weakness)
     key = sweep.key.rsplit(".", 1)[-1]
     text = f"{key}={sweep.base} vs v: " + "; ".join(
         f"v={label} {fmt(c.mean_a)} vs {fmt(c.mean_b)}, {c.text}, rliable P = {fmt_ci(p, ci, 3)}"
         for label, c, p, ci in compared)
-    return Estimate(row.effect, (math.nan, math.nan), text, f"{budget}, {pair.at}", reach=float(pair.grid[-1]),
+    mixes = "".join(f"; {m}" for m in (arm_mix(runs, a.exp, f"{key}={a.label}") for a in arms) if m)
+    return Estimate(row.effect, (math.nan, math.nan), text, f"{budget}, {pair.at}{mixes}", reach=float(pair.grid[-1]),
                     comparison=row)
 
 

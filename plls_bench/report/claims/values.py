@@ -1,6 +1,6 @@
 """Claim measurements that read one number per trial or trained model (representation MSE,
 latent-space studies, parameter counts, the filmstrip), and the helpers every claim kind shares:
-the budget text and a mean with its bootstrap CI. The kinds on return curves are in
+the budget text and a mean with its Student t interval. The kinds on return curves are in
 :mod:`plls_bench.report.claims.claims_table`."""
 from __future__ import annotations
 
