@@ -18,8 +18,8 @@ from scipy import stats
 
 from plls_bench.report.claims.claims_table import read_claims, reading_summary
 from plls_bench.report.claims.levels import least_trials, median_interval
-from plls_bench.report.claims.settings import load_settings
 from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.evidence.claim_settings import load_settings
 from plls_bench.report.evidence.protocol import (
     A_BETTER,
     EQUIVALENT,

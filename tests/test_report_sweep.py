@@ -16,9 +16,9 @@ from plls_bench.pipeline.plan import plan_sweep
 from plls_bench.pipeline.sweeps import load_sweep
 from plls_bench.report import render_all
 from plls_bench.report.claims.claims_table import read_claims
-from plls_bench.report.claims.settings import load_settings
 from plls_bench.report.claims.sweep import sweep_best
 from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.evidence.claim_settings import load_settings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged
 from tests.conftest import REPO_ROOT

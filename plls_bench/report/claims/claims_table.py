@@ -30,9 +30,9 @@ from plls_bench.core.metric_rows import POLICIES
 from plls_bench.report.claims.compare import ahead_point, comparison_verdict, p_improvement, std_gap
 from plls_bench.report.claims.costs import undecided_cost
 from plls_bench.report.claims.levels import convergence_point, final_return
-from plls_bench.report.claims.settings import ClaimSettings, check_rows, load_settings
 from plls_bench.report.claims.sweep import sweep_best
 from plls_bench.report.claims.values import param_count, repr_mse, steps_to_goal, study_metric
+from plls_bench.report.evidence.claim_settings import ClaimSettings, check_rows, load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged
@@ -156,11 +156,6 @@ def read_claims(paper_dir: Path) -> list[dict[str, str]]:
     # claims.yaml names only these rows, and every comparison and published anchor among them
     check_rows(load_settings(paper_dir, [row["claim"] for row in rows]), rows, paper_dir)
     return rows
-
-
-def paper_settings(paper_dir: Path) -> ClaimSettings:
-    """The protocol's settings of ``paper_dir/claims.yaml``, checked against ``claims.csv``'s rows."""
-    return load_settings(paper_dir, [row["claim"] for row in read_claims(paper_dir)])
 
 
 def _check_chains(rows: list[dict[str, str]], paper_dir: Path) -> None:

@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from plls_bench.report.claims.settings import ClaimSettings
 from plls_bench.report.claims.values import budget_text, policy_of
+from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import Matched, NotJudged, finished_counts, matched, require_trials
 from plls_bench.report.evidence.protocol import (

@@ -9,7 +9,7 @@ from functools import cache
 
 from plls_bench.pipeline.plan import plan_profile
 from plls_bench.pipeline.rates import load_rates
-from plls_bench.report.claims.settings import ClaimSettings
+from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.protocol import TOO_FEW, Comparison
 from plls_bench.report.evidence.verdicts import INCONCLUSIVE, NOT_RUN

@@ -13,8 +13,8 @@ from scipy import stats
 
 from plls_bench.core.metric_rows import EvalRow
 from plls_bench.report.claims.compare import arm_mix
-from plls_bench.report.claims.settings import ClaimSettings, dispersion_text
 from plls_bench.report.claims.values import budget_text, policy_of
+from plls_bench.report.evidence.claim_settings import ClaimSettings, dispersion_text
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import Matched, NotJudged, at_text, finished_counts, matched, require_trials
 from plls_bench.report.evidence.protocol import one_sample_p, t_interval, tail_mean, welch

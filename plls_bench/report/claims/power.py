@@ -9,7 +9,7 @@ import pandas as pd
 
 from plls_bench.report.claims.claims_table import KINDS, read_claims
 from plls_bench.report.claims.costs import more_trials
-from plls_bench.report.claims.settings import ClaimSettings, load_settings
+from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged

@@ -18,7 +18,7 @@ import math
 
 from plls_bench.pipeline.sweeps import load_sweep
 from plls_bench.report.claims.compare import arm_mix
-from plls_bench.report.claims.settings import ClaimSettings
+from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged, finished_counts, require_trials
 from plls_bench.report.evidence.protocol import B_BETTER, TOO_FEW, Comparison, compare_arms, tail_mean

@@ -30,7 +30,7 @@ import numpy as np
 
 from plls_bench.config.tasks import ENV_BACKENDS
 from plls_bench.pipeline.runner_registry import RUNNERS
-from plls_bench.report.claims.settings import ClaimSettings
+from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import DEFAULT_VARIANT, DEFAULT_VARIANTS, Runs
 from plls_bench.report.evidence.matched import Matched, NotJudged, matched
 from plls_bench.report.evidence.protocol import TOO_FEW, Comparison, adjust, compare_arms, holm, tail_mean

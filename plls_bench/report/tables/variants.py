@@ -9,8 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from plls_bench.report.claims.claims_table import paper_settings
-from plls_bench.report.claims.settings import ClaimSettings
+from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import DEFAULT_VARIANT, Runs
 from plls_bench.report.evidence.table_formats import NA, Table, fmt, plural
@@ -83,7 +82,7 @@ def index_line(variant: Variant, judged: Judged) -> str:
 def variants_view(runs: Runs, entry: Entry, opts: Options) -> Output:
     """The table, one figure per preset with variants (where returns are logged) and the index lines."""
     rows, records, lines, trials, figures = [], [], [], {}, {}
-    settings = paper_settings(opts.paper_dir)
+    settings = load_settings(opts.paper_dir, None)  # the protocol block; the claims table checks the names
     for preset, names in found_variants(runs).items():
         variants = [load_variant(runs, preset, name) for name in names]
         for variant, judged in zip(variants, judge_preset(runs, variants, settings)):

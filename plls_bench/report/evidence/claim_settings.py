@@ -52,8 +52,8 @@ def _mapping(node: Any, path: Path, where: str) -> dict[str, Any]:
     return node
 
 
-def _known(rows: set[str], names: list[str], path: Path, where: str) -> None:
-    unknown = [n for n in names if n not in rows]
+def _known(rows: set[str] | None, names: list[str], path: Path, where: str) -> None:
+    unknown = [] if rows is None else [n for n in names if n not in rows]
     if unknown:
         raise _fail(path, where, f"not a claim of claims.csv: {unknown[0]!r}")
 
@@ -85,14 +85,15 @@ def _protocol(node: Any, path: Path) -> dict[str, Any]:
     return node
 
 
-def load_settings(paper_dir: Path, claim_names: list[str]) -> ClaimSettings:
-    """``paper_dir/claims.yaml``, checked against ``claim_names`` (the rows of claims.csv)."""
+def load_settings(paper_dir: Path, claim_names: list[str] | None) -> ClaimSettings:
+    """``paper_dir/claims.yaml``, checked against ``claim_names`` (the rows of claims.csv); ``None``
+    checks no names (a view that reads only the protocol; the claims table checks them)."""
     path = paper_dir / SETTINGS_FILE
     try:
         raw = _mapping(yaml.safe_load(path.read_text()), path, "top level")
     except OSError as err:
         raise ValueError(f"{path}: cannot read the claims' decision settings ({err})") from None
-    rows = set(claim_names)
+    rows = None if claim_names is None else set(claim_names)
     protocol = _protocol(raw.get("protocol"), path)
     comparisons = _mapping(raw.get("comparisons", {}), path, "comparisons")
     anchors = _mapping(raw.get("anchors", {}), path, "anchors")
