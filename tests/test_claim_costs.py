@@ -2,7 +2,18 @@
 each arm from its own count up to the target, at each arm's own rate."""
 from __future__ import annotations
 
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from plls_bench.pipeline.plan import plan_profile
 from plls_bench.report.claims.costs import MoreTrials, more_trials, trial_seconds
+from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
+from plls_bench.rundirs.run_dir import config_hash
+from plls_bench.train.schedule import Schedule
+from tests.conftest import compose_preset
 
 
 def test_each_arm_is_costed_from_its_own_count_at_its_own_rate() -> None:
@@ -25,3 +36,20 @@ def test_the_dry_run_s_rates_cost_a_cheap_and_an_expensive_arm_apart() -> None:
     assert cheap and cnn and cnn > 5 * cheap  # a CNN PPO trial is update-bound on a CPU; the latent arm is not
     more = more_trials("carracing_plls_ppo", "carracing_ppo", "quick", (3, 5), 5)
     assert more.more == (2, 0) and more.seconds == 2 * cheap
+
+
+def test_a_trial_resuming_near_its_end_does_not_make_more_trials_look_cheap(runs_dir: Path) -> None:
+    """Every seed but one resumes from a partial record at 90% of its iterations: one more trial
+    still costs a whole trial, as when none resumes."""
+    fresh = trial_seconds("mountaincar_ppo", "quick", str(runs_dir))
+    cfg = compose_preset("mountaincar_ppo", runs_dir, "budget=quick")
+    iterations = Schedule.of(cfg).iterations
+    for seed in range(1, cfg.budget.trials):
+        marker = runs_dir.parent / "records" / PARTIAL_DIR / "mountaincar_ppo" / "default" / f"seed={seed}"
+        marker.mkdir(parents=True)
+        payload = {"config_hash": config_hash(replace(cfg, seed=seed)), "iteration": iterations * 9 // 10}
+        (marker / PARTIAL_MARKER).write_text(json.dumps(payload))
+    trial_seconds.cache_clear()
+    plan = plan_profile("quick", str(runs_dir), only=["mountaincar_ppo"], count_records=False)[0]
+    assert [t.resumes_at for t in plan.trials][1:] == [iterations * 9 // 10] * (cfg.budget.trials - 1)
+    assert fresh and trial_seconds("mountaincar_ppo", "quick", str(runs_dir)) == pytest.approx(fresh)

@@ -18,15 +18,19 @@ POWER_TABLE = "results/tables/power.md"
 
 
 @cache
-def trial_seconds(experiment: str, budget: str) -> float | None:
-    """The dry run's compute for one more trial of ``experiment`` at ``budget`` (its shared
-    artifacts costed in the first trial only, so the cheapest trial is the marginal one); None
-    without a measured rate."""
-    from plls_bench.rundirs.composition import CONF_DIR
-    runs_dir = str(CONF_DIR.parent / "results" / "runs")
+def trial_seconds(experiment: str, budget: str, runs_dir: str | None = None) -> float | None:
+    """The dry run's compute for one more whole trial of ``experiment`` at ``budget``: the cheapest
+    pending trial (its shared artifacts are costed in the first trial only, so the cheapest is the
+    marginal one), a trial that resumes from a checkpoint scaled up to the whole trial it is part of
+    (else a nearly finished partial record would make more trials look cheap); None without a
+    measured rate. ``runs_dir``: the repository's ``results/runs`` unless given."""
+    if runs_dir is None:
+        from plls_bench.rundirs.composition import CONF_DIR
+        runs_dir = str(CONF_DIR.parent / "results" / "runs")
     plans = [p for p in plan_profile(budget, runs_dir, only=[experiment], rates=load_rates(), count_records=False)
              if p.experiment == experiment]
-    seconds = [s for p in plans for s in p.trial_seconds.values()]
+    seconds = [p.trial_seconds[t.seed] / t.remaining for p in plans for t in p.trials
+               if t.seed in p.trial_seconds and t.remaining > 0]
     return min(seconds) if seconds and not any(p.missing_rates for p in plans) else None
 
 
