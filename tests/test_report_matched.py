@@ -88,6 +88,18 @@ def test_the_sampled_action_row_judges_the_same_episodes_with_sampled_actions(tm
                                "PPO, sampled actions": 302}
 
 
+def test_the_stats_table_reads_the_final_return_as_the_claims_rows_do(tmp_path: Path) -> None:
+    """A rising curve: its last evaluation (10 + seed at iteration 10) is not its final, the mean of
+    the last 3 (iterations 6, 8, 10: 8 + seed); both tables say 10 over seeds 0-4, not 12."""
+    arm(tmp_path / "runs", "carracing_plls_ppo", 5, list(range(0, 11, 2)), lambda seed, i: float(i + seed))
+    arm(tmp_path / "runs", "carracing_ppo", 5, list(range(0, 11, 2)), lambda seed, i: 50.0 + seed)
+    beats = row(claims(tmp_path / "runs", tmp_path / "out"), FIG18)
+    assert beats["suite"].startswith("10 vs 52 (final, mean of the last 3")
+    stats = pd.read_csv(render_stats(tmp_path)).query("figure == 'fig18'").set_index("method")
+    assert stats.loc["PL-LS + PPO", "final_mean"] == pytest.approx(10.0)
+    assert stats.loc["PL-LS + PPO", "curve_mean"] == pytest.approx(7.0)  # mean of 2 + (0..10 step 2)
+
+
 def render_stats(root: Path) -> Path:
     render_all(root / "runs", root / "stats", only=["stats"])
     return root / "stats" / "tables" / "stats.csv"

@@ -97,8 +97,9 @@ def _trial_curve(runs: Runs, exp: Experiment, trial: Trial, x_axis: str, env_ste
 # --------------------------------------------------------------------------- scores
 @dataclass(frozen=True)
 class Scores:
-    """Per-trial scores of one method: ``final`` (mean return at the last evaluation compared) and
-    ``auc`` (mean return over the evaluations compared), over its finished trials."""
+    """Per-trial scores ``(n,)`` of one method: ``final`` (mean return over the last evaluations
+    compared, the claims' final_tail) and ``auc`` (mean return over the evaluations compared), over its
+    finished trials."""
 
     label: str
     seeds: tuple[int, ...]

@@ -6,9 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from plls_bench.report.evidence.claim_settings import load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged, matched
+from plls_bench.report.evidence.protocol import tail_mean
 from plls_bench.report.evidence.returns import DEFAULT_X_AXIS, Curves, Scores, load_curves
 from plls_bench.report.evidence.stats import SCORE_RESAMPLES, SEED, probability_of_improvement, summarise
 from plls_bench.report.evidence.table_formats import NA, Table, fmt, fmt_ci
@@ -16,8 +18,9 @@ from plls_bench.report.evidence.table_formats import NA, Table, fmt, fmt_ci
 CAPTION = (
     "Every method of a comparison is measured where all of them were: on the evaluations that every "
     "finished trial (status done) of every method reaches, up to the x in the last column. Per trial: "
-    "final = mean return at that x, curve = mean return over those evaluations (area under the curve / "
-    "its length); a method run longer is not credited with its later evaluations. Mean and IQM (mean of "
+    "final = mean return over the last {tail} of those evaluations (results/paper/claims.yaml, final_tail, "
+    "as in the claims rows), curve = mean return over them (area under the curve / its length); a method run "
+    "longer is not credited with its later evaluations. Mean and IQM (mean of "
     "the middle 50% of trials) as rliable.metrics computes them; P(PL-LS > method) = P(X > Y) + P(X = Y)/2 "
     f"over pairs of trials (rliable's probability of improvement). 95% CIs: percentile bootstrap, "
     f"{SCORE_RESAMPLES:,} resamples, random state {SEED}, trials resampled within each method "
@@ -58,9 +61,10 @@ def _row(comparison: Entry, label: str, budget: str | None, own: Scores,
     return cells, record
 
 
-def matched_scores(runs: Runs, methods: list[Curves]) -> list[Scores]:
-    """Each method's finished trials scored on the evaluations all of them reach (no scores for a
-    method without finished trials, or for all when they share no evaluation)."""
+def matched_scores(runs: Runs, methods: list[Curves], tail: int) -> list[Scores]:
+    """Each method's finished trials scored on the evaluations all of them reach, final over the last
+    ``tail`` of them (no scores for a method without finished trials, or for all when they share no
+    evaluation)."""
     present = [i for i, c in enumerate(methods) if c.finished_seeds().any()]
     try:
         pair = matched(*[methods[i] for i in present], runs=runs) if present else None
@@ -73,16 +77,18 @@ def matched_scores(runs: Runs, methods: list[Curves]) -> list[Scores]:
             out.append(Scores(curves.label, seeds, np.zeros(0), np.zeros(0), np.nan))
             continue
         values = pair.values[present.index(i)]
-        out.append(Scores(curves.label, seeds, values[:, -1], values.mean(axis=1), float(pair.grid[-1])))
+        final = tail_mean(values, min(tail, values.shape[1]))
+        out.append(Scores(curves.label, seeds, final, values.mean(axis=1), float(pair.grid[-1])))
     return out
 
 
 def return_statistics(runs: Runs, entry: Entry, opts: Options, *, comparisons: tuple[Entry, ...]) -> Output:
     """One row per (comparison, method); the first source of each comparison is PL-LS."""
     rows, records, trials = [], [], {}
+    tail = load_settings(opts.paper_dir, None).final_tail  # the protocol block; the claims table checks the names
     for comparison in comparisons:
         all_scores = matched_scores(runs, [load_curves(runs, runs.experiment(s.experiment), s.label, DEFAULT_X_AXIS)
-                                     for s in comparison.sources])
+                                     for s in comparison.sources], tail)
         method = all_scores[0]
         for source, own in zip(comparison.sources, all_scores):
             budget = runs.experiment(source.experiment).budget
@@ -93,7 +99,7 @@ def return_statistics(runs: Runs, entry: Entry, opts: Options, *, comparisons: t
     columns = ["Figure", "Method", "Budget", "Trials", "Final return, mean [95% CI]", "Final return, IQM [95% CI]",
                "Mean return over the curve [95% CI]", "P(PL-LS > method), final [95% CI]",
                "P(PL-LS > method), curve [95% CI]", "Compared at (iteration)"]
-    table = Table(f"{entry.ref}. {entry.title}", CAPTION, columns, rows, pd.DataFrame(records))
+    table = Table(f"{entry.ref}. {entry.title}", CAPTION.format(tail=tail), columns, rows, pd.DataFrame(records))
     fewest = min((n for n in trials.values() if n), default=0)
     if 0 < fewest < FEW_TRIALS:
         table.notes.append(FEW_NOTE.format(n=fewest))
