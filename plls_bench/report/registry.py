@@ -13,7 +13,7 @@ from plls_bench.report.figures import curves as fig_curves
 from plls_bench.report.figures import images as fig_images
 from plls_bench.report.figures import latent_space as fig_latent
 from plls_bench.report.figures import sweep as fig_sweep
-from plls_bench.report.tables import comparisons, efficiency
+from plls_bench.report.tables import comparisons, efficiency, eval_modes
 from plls_bench.report.tables import variants as variants_table
 from plls_bench.rundirs.run_dir import ARCHITECTURE_FILE, PARAMS_FILE
 
@@ -110,6 +110,10 @@ ENTRIES: tuple[Entry, ...] = (
     Entry("stats", "Return statistics", "IQM, mean and probability of improvement for every return comparison",
           tuple(dict.fromkeys(s for e in RETURN_COMPARISONS for s in e.sources)),
           partial(comparisons.return_statistics, comparisons=RETURN_COMPARISONS), EVAL, kind="table"),
+    # Not the paper's: the two readings of every PPO arm's test episodes (D20), per exploration setting.
+    Entry("eval_modes", "Evaluation modes", "Acting on the mean or sampling actions, per PPO arm",
+          (MC_PLLS, MC_PPO, MC_PLLS_GSDE, MC_PPO_GSDE, MC_ZOO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CR_PLLS_GSDE,
+           CR_PPO_GSDE), eval_modes.evaluation_modes, EVAL, kind="table"),
     Entry("claims", "Paper vs suite", "Every quantitative claim of the paper beside the suite's value",
           (MC_PLLS, MC_PPO, MC_PLLS_GSDE, MC_PPO_GSDE, MC_ZOO, CR_PLLS, CR_PPO, CR_VS, CR_VA, CH_PLLS, CH_DBC,
            CH_SAC, CH_SAC_PIXEL, S("mountaincar_va", "V_a"), S("carracing_va", "V_a")),
