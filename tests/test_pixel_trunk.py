@@ -95,6 +95,7 @@ def gradients(module: nn.Module, forward: Forward, dtype: torch.dtype,
 def assert_within(fast: torch.Tensor, slow: torch.Tensor, what: str, tol: float = 1e-5) -> None:
     """Largest difference within ``tol`` of the tensor's own scale (its largest magnitude, at least
     1): a gradient summed over a batch's pixels differs by float rounding relative to its size."""
+    fast, slow = fast.detach(), slow.detach()  # weights compared as values, not as graph nodes
     scale = max(1.0, float(slow.abs().max()))
     gap = float((fast - slow).abs().max())
     assert gap <= tol * scale, f"{what}: max difference {gap:.3g} > {tol:g} x scale {scale:.3g}"
