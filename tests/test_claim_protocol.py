@@ -164,10 +164,13 @@ def test_an_arm_that_mixes_commits_and_devices_says_so(tmp_path: Path) -> None:
     arm(runs, "carracing_ppo", 5, [0, 32, 64], lambda seed, i: 50.0 + seed)
     for seed in range(5):
         path = runs / "carracing_ppo" / "default" / f"seed={seed}" / "provenance.json"
-        provenance = json.loads(path.read_text())
-        provenance.update(device_resolved="cpu" if seed < 2 else "cuda:0", git_sha="a" * 40 if seed < 2 else "b" * 40)
-        path.write_text(json.dumps(provenance))
+        first = {**json.loads(path.read_text())["starts"][0], "device_resolved": "cpu" if seed < 2 else "cuda:0",
+                 "git_sha": "a" * 40 if seed < 2 else "b" * 40}
+        starts = [first] + ([{**first, "device_resolved": "cpu", "git_sha": "c" * 40}] if seed == 4 else [])
+        path.write_text(json.dumps({**first, "starts": starts}))  # as the run dir writes it: the first start on top
     table = claims(runs, tmp_path / "out")
-    mix = "; carracing_ppo pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3, 4 (cuda, bbbbbbb)"
+    # seed 4 stopped on the GPU and resumed on a CPU at a later commit: the row names both
+    mix = ("; carracing_ppo pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3 (cuda, bbbbbbb); "
+           "seed 4 (cuda + cpu, bbbbbbb + ccccccc)")
     assert row(table, "PL-LS with PPO beats PPO on CarRacing (final return)")["budget"].endswith(mix)
     assert row(table, "PPO not converged by 120,000 iterations on CarRacing")["budget"].endswith(mix)  # convergence

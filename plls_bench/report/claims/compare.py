@@ -33,17 +33,25 @@ from plls_bench.report.evidence.verdicts import INCONCLUSIVE, NOT_REPRODUCED, NO
 def arm_mix(runs: Runs, exp: Experiment, name: str | None = None) -> str:
     """The commits and devices one arm's pooled trials ran on, when they are not all one:
     "carracing_ppo pools seed 0 (cpu, 3b4e22a), seeds 1, 2 (cuda, 914a039)" (``name``, default the
-    experiment's, names the arm); "" otherwise. Trials are pooled only when their configs agree apart
+    experiment's, names the arm); "" otherwise. A trial resumed on another machine or commit names
+    each ("seed 5 (cpu, 0922f05 + ab61694)"). Trials are pooled only when their configs agree apart
     from the seed and the device (:func:`plls_bench.report.evidence.identity.pooling_identity`)."""
     groups: dict[tuple[str, str], list[int]] = {}
     for trial in exp.trials:
-        prov = runs.json(exp, trial, "provenance.json") or {}
-        device = str(prov.get("device_resolved") or "unknown device").split(":")[0]
-        groups.setdefault((device, str(prov.get("git_sha") or "unknown commit")[:7]), []).append(trial.seed)
+        groups.setdefault(_where_it_ran(runs.json(exp, trial, "provenance.json") or {}), []).append(trial.seed)
     if len(groups) <= 1:
         return ""
     parts = [f"seed{'s' if len(s) > 1 else ''} {', '.join(map(str, s))} ({d}, {c})" for (d, c), s in groups.items()]
     return f"{name or exp.name} pools {'; '.join(parts)}"
+
+
+def _where_it_ran(provenance: dict) -> tuple[str, str]:
+    """The devices and commits of every start of one trial, in order ("cpu", "0a0e90c + ab61694"):
+    a trial stopped and resumed later may have run on two machines or at two commits."""
+    starts = provenance.get("starts") or [provenance]
+    devices = [str(s.get("device_resolved") or "unknown device").split(":")[0] for s in starts]
+    commits = [str(s.get("git_sha") or "unknown commit")[:7] for s in starts]
+    return " + ".join(dict.fromkeys(devices)), " + ".join(dict.fromkeys(commits))
 
 
 def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:
