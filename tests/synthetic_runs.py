@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import json
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
@@ -60,6 +61,15 @@ def make_run(runs_dir: Path, experiment: str, seed: int, budget: str = "quick",
 def finish(run: Run, cfg: Config, state: str = STATUS_DONE) -> None:
     error = {"error": "RuntimeError: boom"} if state == "failed" else {}
     run.write_status(state, config_hash=config_hash(cfg), **error)
+
+
+def set_starts(run_dir: Path, *starts: tuple[str, str]) -> None:
+    """Rewrite ``run_dir``'s provenance.json as a trial launched once per ``(device, git sha)`` in
+    ``starts``, laid out as the run dir writes it: every start in "starts", the first on top."""
+    path = run_dir / "provenance.json"
+    first = read_json(path)["starts"][0]
+    written = [{**first, "device_resolved": device, "git_sha": sha} for device, sha in starts]
+    path.write_text(json.dumps({**written[0], "starts": written}))
 
 
 def write_npz(run: Run, relpath: str, **arrays: np.ndarray) -> None:

@@ -5,7 +5,6 @@ why they cannot be read: neither arm solves the task; an arm mixes commits and d
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import re
 import shutil
@@ -32,6 +31,7 @@ from plls_bench.report.evidence.protocol import (
     welch,
 )
 from plls_bench.report.evidence.verdicts import NOT_MADE, NOT_RUN, NOT_SOLVED
+from tests.synthetic_runs import set_starts
 from tests.test_report_matched import arm, claims, row
 
 
@@ -163,11 +163,9 @@ def test_an_arm_that_mixes_commits_and_devices_says_so(tmp_path: Path) -> None:
     arm(runs, "carracing_plls_ppo", 5, [0, 32, 64], lambda seed, i: 200.0 + seed)
     arm(runs, "carracing_ppo", 5, [0, 32, 64], lambda seed, i: 50.0 + seed)
     for seed in range(5):
-        path = runs / "carracing_ppo" / "default" / f"seed={seed}" / "provenance.json"
-        first = {**json.loads(path.read_text())["starts"][0], "device_resolved": "cpu" if seed < 2 else "cuda:0",
-                 "git_sha": "a" * 40 if seed < 2 else "b" * 40}
-        starts = [first] + ([{**first, "device_resolved": "cpu", "git_sha": "c" * 40}] if seed == 4 else [])
-        path.write_text(json.dumps({**first, "starts": starts}))  # as the run dir writes it: the first start on top
+        first = ("cpu", "a" * 40) if seed < 2 else ("cuda:0", "b" * 40)
+        later = [("cpu", "c" * 40)] if seed == 4 else []
+        set_starts(runs / "carracing_ppo" / "default" / f"seed={seed}", first, *later)
     table = claims(runs, tmp_path / "out")
     # seed 4 stopped on the GPU and resumed on a CPU at a later commit: the row names both
     mix = ("; carracing_ppo pools seeds 0, 1 (cpu, aaaaaaa); seeds 2, 3 (cuda, bbbbbbb); "

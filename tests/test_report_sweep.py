@@ -3,7 +3,6 @@
 two-value smoke sweep."""
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +21,7 @@ from plls_bench.report.evidence.claim_settings import load_settings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged
 from tests.conftest import REPO_ROOT
-from tests.synthetic_runs import finish, make_run, write_eval, write_repr
+from tests.synthetic_runs import finish, make_run, set_starts, write_eval, write_repr
 
 CLAIM = "N_e = 32 performs the best"
 PRESET = "carracing_plls_ppo"
@@ -75,10 +74,8 @@ def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> Non
     for value, level in ((3, 0.0), (8, 10.0), (16, 20.0), (32, 100.0), (64, 30.0)):
         arm(runs, value, [level + k for k in range(5)], mse=0.001 * value)
     for seed in range(5):  # N_e = 8's trials ran on two commits and devices
-        path = runs / PRESET / "repr.action.latent_dim=8" / f"seed={seed}" / "provenance.json"
-        provenance = json.loads(path.read_text())
-        provenance.update(device_resolved="cpu" if seed < 2 else "cuda:0", git_sha="a" * 40 if seed < 2 else "b" * 40)
-        path.write_text(json.dumps(provenance))
+        run_dir = runs / PRESET / "repr.action.latent_dim=8" / f"seed={seed}"
+        set_starts(run_dir, ("cpu", "a" * 40) if seed < 2 else ("cuda:0", "b" * 40))
     row = claim_row(runs, tmp_path / "out")
     # every other value loses in every split of its 5 + 5 trials but the observed one's mirror: p = 2 / 252
     assert row["verdict"] == "reproduced", row["reason"]
