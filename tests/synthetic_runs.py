@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import io
-import json
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
@@ -16,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from plls_bench.config import Config
-from plls_bench.core.atomic_files import read_json
+from plls_bench.core.atomic_files import atomic_write_json, read_json
 from plls_bench.pipeline.sweeps import load_sweep, sweep_names
 from plls_bench.report.registry import ENTRIES
 from plls_bench.rundirs.composition import compose
@@ -69,7 +68,7 @@ def set_starts(run_dir: Path, *starts: tuple[str, str]) -> None:
     path = run_dir / "provenance.json"
     first = read_json(path)["starts"][0]
     written = [{**first, "device_resolved": device, "git_sha": sha} for device, sha in starts]
-    path.write_text(json.dumps({**written[0], "starts": written}))
+    atomic_write_json(path, {**written[0], "starts": written})
 
 
 def write_npz(run: Run, relpath: str, **arrays: np.ndarray) -> None:
