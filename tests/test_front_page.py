@@ -51,7 +51,8 @@ def test_the_block_counts_verdicts_and_tables_the_named_claims(tmp_path: Path) -
     assert block.startswith(START) and block.endswith(END)
     assert "**3 claims judged**" in block and "2 reproduced, 1 inconclusive" in block
     assert f"| {HEADLINE_CLAIMS[0][0]} | {named} | P \\| x | 0.5 [0, 1] | — | inconclusive |" in block
-    assert f"| {tested} | 1 | 3 vs 2 | Welch t = 3.14, p = 0.012 | reproduced |" in block, "Holm-adjusted p"
+    assert f"| {tested} | 1 | 3 vs 2 | Welch t = 3.14, p = 0.004, Holm-adjusted p = 0.012 | reproduced |" in block, \
+        "the test's own p, then the adjusted p the verdict reads"
     assert block.count("not in the claims table") == len(HEADLINE_CLAIMS) - 2
     page = f"# T\n\nintro\n{START}\nold\n{END}\nrest\n"
     assert with_headline(page, block) == f"# T\n\nintro\n{block}\nrest\n"

@@ -43,11 +43,14 @@ def _first_clause(suite: str) -> str:
 
 
 def _test_text(row: dict[str, str]) -> str:
-    """The decision's test, statistic and (Holm-adjusted) p, when the row was tested."""
+    """The decision's test, statistic and p, with the Holm-adjusted p the verdict reads where the
+    row is one of a family (a bare adjusted p would read as the test's own)."""
     if row.get("test") in ("", "none", None) or not row.get("p"):
         return ""
-    p = row.get("p_adjusted") or row["p"]
-    return f"{row['test']} = {float(row['statistic']):.3g}, p = {float(p):.2g}"
+    text = f"{row['test']} = {float(row['statistic']):.3g}, p = {float(row['p']):.2g}"
+    if row.get("p_adjusted"):
+        text += f", Holm-adjusted p = {float(row['p_adjusted']):.2g}"
+    return text
 
 
 def build_headline(results_dir: Path) -> str:
