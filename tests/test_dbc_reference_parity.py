@@ -24,20 +24,22 @@ def batches(n: int, size: int = 16) -> list[Batch]:
             for _ in range(n)]
 
 
-def sides(runs_dir: Path, *other_overrides: str) -> tuple[parity.Side, parity.Side]:
+def sides(runs_dir: Path, *other_overrides: str, preset: str = "cheetah_dbc") -> tuple[parity.Side, parity.Side]:
     small = ("algo.dbc.hidden_dim=32",)
-    cfgs = [compose_preset("cheetah_dbc", runs_dir, *small, *extra).algo.dbc for extra in ((), other_overrides)]
+    cfgs = [compose_preset(preset, runs_dir, *small, *extra).algo.dbc for extra in ((), other_overrides)]
     torch.manual_seed(0)
     first, second = (parity.suite_side(DBCAgent(OBS, 6, cfg)) for cfg in cfgs)
     return first, second
 
 
-@pytest.mark.parametrize("other, same", [((), True), (("algo.dbc.bisim_coef=0.25",), False),
-                                         (("algo.dbc.encoder_tau=0.5",), False)])
+@pytest.mark.parametrize("preset, other, same", [
+    ("cheetah_dbc", (), True), ("cheetah_dbc", ("algo.dbc.bisim_coef=0.25",), False),
+    ("cheetah_dbc", ("algo.dbc.encoder_tau=0.5",), False),
+    ("cheetah_sac_pixel", (), True), ("cheetah_sac_pixel", ("algo.dbc.critic_lr=0.01",), False)])
 def test_one_computation_is_the_same_update_and_a_changed_setting_is_not(
-        runs_dir: Path, other: tuple[str, ...], same: bool) -> None:
+        runs_dir: Path, preset: str, other: tuple[str, ...], same: bool) -> None:
     with parity.default_dtype(torch.float64):
-        first, second = sides(runs_dir, *other)
+        first, second = sides(runs_dir, *other, preset=preset)
         parity.copy_weights(first, second)
         data = [parity.cast(b, torch.float64) for b in batches(3)]
         rows = parity.side_by_side(first, second, data[:2], data[2].obs, np.arange(16)[::-1].copy())
@@ -65,9 +67,17 @@ def test_layers_that_differ_are_named(runs_dir: Path) -> None:
         parity.copy_weights(first, second)
 
 
-def test_a_path_without_the_reference_is_refused_before_any_work(tmp_path: Path) -> None:
-    with pytest.raises(SystemExit, match="--reference: .* has no agent/bisim_agent.py"):
-        parity.main(["--reference", str(tmp_path)])
+@pytest.mark.parametrize("agent, module", [([], "bisim_agent"), (["--agent", "baseline"], "baseline_agent")])
+def test_a_path_without_the_reference_is_refused_before_any_work(
+        tmp_path: Path, agent: list[str], module: str) -> None:
+    with pytest.raises(SystemExit, match=f"--reference: .* has no agent/{module}.py"):
+        parity.main(["--reference", str(tmp_path), *agent])
+
+
+def test_each_agent_names_a_preset_of_its_kind(runs_dir: Path) -> None:
+    """The baseline is compared on the pixel-SAC preset (encoder trained by the critic), DBC on DBC's."""
+    encoders = {name: compose_preset(agent.preset, runs_dir).algo.dbc.encoder for name, agent in parity.AGENTS.items()}
+    assert encoders == {"bisim": "bisim", "baseline": "critic"}
 
 
 def test_the_float64_trunk_is_restored(runs_dir: Path) -> None:

@@ -1,16 +1,18 @@
 """Does the suite's DBC update compute what the reference's does? Both, side by side, from one state.
 
     python -m plls_bench.validation.dbc_reference_parity --reference PATH --out results/analysis
+    python -m plls_bench.validation.dbc_reference_parity --agent baseline --reference PATH --out results/analysis
 
-PATH is a git checkout of facebookresearch/deep_bisim4control (any commit with
-``agent/bisim_agent.py``). Its modules are imported from there and nothing of it is copied here;
-its train-time dependencies are not needed (``gym``, used only by the env wrappers in its
-``utils``, is stood in for by an empty module unless installed).
+PATH is a git checkout of facebookresearch/deep_bisim4control. ``--agent bisim`` (default) compares
+``cheetah_dbc`` with its ``BisimAgent``; ``--agent baseline`` compares ``cheetah_sac_pixel`` (the
+pixel-SAC pipeline check) with its ``BaselineAgent`` at ``--decoder_type identity``. Its modules are
+imported from there, nothing of it is copied here; ``gym``, which only its env wrappers use, is
+stood in for by an empty module unless installed.
 
 Both agents start from the suite's initial weights, copied parameter by parameter into the
 reference's networks (the same layers in the same order), and take the same updates on the same
 minibatches of one replay: the runner's warm-up of uniform-random agent steps on cheetah-run
-pixels, with ``algo=dbc``'s settings (the reference launcher's). The two codes draw an update's
+pixels, with the preset's ``algo.dbc`` settings. The two codes draw an update's
 randomness in different calls, so it is fixed in both: Gaussian noise (the actor's sample, the
 transition model's) is zero and the bisimulation loss pairs the batch by one fixed permutation.
 
@@ -26,10 +28,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import subprocess
 import sys
 import types
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -57,6 +60,24 @@ DTYPES = {"float64": torch.float64, "float32": torch.float32}
 
 
 @dataclass(frozen=True)
+class ReferenceAgent:
+    """One agent of the reference and the suite preset that reimplements it."""
+
+    module: str   # under the checkout's agent/
+    name: str     # its class
+    preset: str   # the suite's experiment preset; both sides take its algo.dbc settings
+    title: str    # what the report calls it
+    report: str   # file stem of the report under --out
+
+
+AGENTS = {
+    "bisim": ReferenceAgent("bisim_agent", "BisimAgent", "cheetah_dbc", "DBC", "dbc_reference_parity"),
+    "baseline": ReferenceAgent("baseline_agent", "BaselineAgent", "cheetah_sac_pixel", "Pixel SAC",
+                               "sac_pixel_reference_parity"),
+}
+
+
+@dataclass(frozen=True)
 class Side:
     """One implementation as the comparison drives it: an update, its networks by suite name, its
     temperature's log and its critic encoder on observations ``(B, C, H, W)``."""
@@ -71,26 +92,30 @@ def suite_side(agent: DBCAgent) -> Side:
     return Side(agent.update, agent.modules(), agent.log_alpha, agent.critic.encoder)
 
 
-def import_reference(path: Path) -> type:
-    """The reference's ``BisimAgent`` class, imported from the checkout at ``path``."""
-    if not (path / "agent" / "bisim_agent.py").is_file():
-        raise SystemExit(f"--reference: {path} has no agent/bisim_agent.py "
+def import_reference(path: Path, agent: ReferenceAgent = AGENTS["bisim"]) -> type:
+    """The reference's class of ``agent``, imported from the checkout at ``path``."""
+    if not (path / "agent" / f"{agent.module}.py").is_file():
+        raise SystemExit(f"--reference: {path} has no agent/{agent.module}.py "
                          "(a facebookresearch/deep_bisim4control checkout)")
     if "gym" not in sys.modules:  # only utils.FrameStack(gym.Wrapper) needs it, at class definition
         stand_in = types.ModuleType("gym")
         stand_in.Wrapper, stand_in.spaces = object, types.SimpleNamespace(Box=None)  # type: ignore[attr-defined]
         sys.modules["gym"] = stand_in
     sys.path[:0] = [str(path), str(path / "agent")]
-    from bisim_agent import BisimAgent  # type: ignore[import-not-found]
-    return BisimAgent
+    return getattr(importlib.import_module(agent.module), agent.name)
 
 
-def reference_side(agent_class: type, cfg: Config, obs_shape: tuple[int, ...], action_dim: int) -> Side:
-    """The reference's agent with ``algo.dbc``'s settings, driven through its own ``update``."""
+def reference_side(agent_class: type, cfg: Config, obs_shape: tuple[int, ...], action_dim: int,
+                   networks: Iterable[str]) -> Side:
+    """The reference's agent with ``algo.dbc``'s settings, driven through its own ``update``: its
+    ``BisimAgent`` with ``encoder=bisim``, else its ``BaselineAgent`` at decoder_type identity (whose
+    transition model is built but never trained, so only ``networks``, the suite's, are compared)."""
     dbc = cfg.algo.dbc
     assert dbc is not None
+    transition = dbc.transition_model if dbc.transition_model == "probabilistic" else ""
+    own = {"bisim_coef": dbc.bisim_coef} if dbc.encoder == "bisim" else {"transition_model_type": transition}
     agent = agent_class(
-        obs_shape, (action_dim,), "cpu", dbc.transition_model if dbc.transition_model == "probabilistic" else "",
+        obs_shape, (action_dim,), "cpu", *([transition] if dbc.encoder == "bisim" else []),
         hidden_dim=dbc.hidden_dim, discount=dbc.discount, init_temperature=dbc.init_temperature,
         alpha_lr=dbc.alpha_lr, alpha_beta=dbc.alpha_beta, actor_lr=dbc.actor_lr, actor_beta=dbc.actor_beta,
         actor_log_std_min=dbc.actor_log_std_min, actor_log_std_max=dbc.actor_log_std_max,
@@ -98,7 +123,7 @@ def reference_side(agent_class: type, cfg: Config, obs_shape: tuple[int, ...], a
         critic_tau=dbc.critic_tau, critic_target_update_freq=dbc.critic_target_update_freq, encoder_type="pixel",
         encoder_feature_dim=dbc.encoder_feature_dim, encoder_lr=dbc.encoder_lr, encoder_tau=dbc.encoder_tau,
         decoder_type="identity", decoder_lr=dbc.decoder_lr, decoder_weight_lambda=dbc.decoder_weight_lambda,
-        num_layers=dbc.num_layers, num_filters=dbc.num_filters, bisim_coef=dbc.bisim_coef)
+        num_layers=dbc.num_layers, num_filters=dbc.num_filters, **own)
     silent = mock.MagicMock()  # its logger: every call accepted, nothing written
 
     def update(batch: Batch, step: int) -> None:
@@ -106,10 +131,9 @@ def reference_side(agent_class: type, cfg: Config, obs_shape: tuple[int, ...], a
                   batch.next_obs.to(batch.reward.dtype), batch.not_done)
         agent.update(types.SimpleNamespace(sample=lambda: sample), silent, step)
 
-    networks = {"critic": agent.critic, "actor": agent.actor, "critic_target": agent.critic_target,
-                "transition_model": agent.transition_model, "reward_decoder": agent.reward_decoder}
     dtype = torch.get_default_dtype()
-    return Side(update, networks, agent.log_alpha, lambda obs: agent.critic.encoder(obs.to(dtype)))
+    modules = {name: getattr(agent, name) for name in networks}
+    return Side(update, modules, agent.log_alpha, lambda obs: agent.critic.encoder(obs.to(dtype)))
 
 
 def copy_weights(source: Side, target: Side) -> None:
@@ -208,7 +232,7 @@ def compare(agent_class: type, cfg: Config, batches: list[Batch], heldout: torch
     with default_dtype(dtype):
         torch.manual_seed(SEED)
         suite = suite_side(DBCAgent(obs_shape, action_dim, cfg.algo.dbc, "cpu", conv_stack(cfg.precision)))
-        reference = reference_side(agent_class, cfg, obs_shape, action_dim)
+        reference = reference_side(agent_class, cfg, obs_shape, action_dim, suite.networks)
         copy_weights(suite, reference)
         perm = np.random.default_rng(SEED + 2).permutation(cfg.algo.dbc.batch_size)
         return side_by_side(suite, reference, [cast(b, dtype) for b in batches], heldout, perm)
@@ -232,15 +256,18 @@ def verdict(rows: list[dict[str, Any]]) -> str:
 
 
 def markdown(report: dict[str, Any]) -> str:
-    m = report["machine"]
-    lines = ["# DBC: the suite's update beside the reference's", "",
+    m, agent = report["machine"], AGENTS[report.get("agent", "bisim")]
+    bisim = agent.module == "bisim_agent"
+    files = ", ".join(f"`{f}`" for f in (f"agent/{agent.module}.py", "sac_ae.py", "encoder.py", "transition_model.py"))
+    lines = [f"# {agent.title}: the suite's update beside the reference's", "",
              f"Command: `{report['command']}`  ",
              f"Reference: facebookresearch/deep_bisim4control at `{report['reference_commit']}`, imported from its "
-             "checkout (`agent/bisim_agent.py`, `sac_ae.py`, `encoder.py`, `transition_model.py`)  ",
+             f"checkout ({files})  ",
              f"Machine: {m['cpu']}, {m['cores']} cores, torch {m['torch']}; load average {m['load']}.  ",
-             f"Data: {report['steps']} uniform-random agent steps of `cheetah_dbc` (pixels, budget=quick), "
+             f"Data: {report['steps']} uniform-random agent steps of `{agent.preset}` (pixels, budget=quick), "
              f"minibatches of {report['batch']}; updates at agent steps 1..{report['updates']} (actor, temperature "
-             "and targets on even steps). Gaussian noise zero and one bisimulation pairing in both: the two codes "
+             "and targets on even steps). Gaussian noise zero"
+             + (" and one bisimulation pairing" if bisim else "") + " in both: the two codes "
              "draw them in different calls (`plls_bench/validation/dbc_reference_parity.py` says why and how to read "
              "the tables).",
              "", f"**Verdict:** {report['verdict']}", ""]
@@ -264,23 +291,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reference", type=Path, required=True, help="a facebookresearch/deep_bisim4control checkout")
     parser.add_argument("--steps", type=int, default=300, help="uniform-random agent steps in the replay")
     parser.add_argument("--updates", type=int, default=6, help="updates each implementation takes")
-    parser.add_argument("--out", type=Path, default=None, help="folder for dbc_reference_parity.{md,json}")
+    parser.add_argument("--agent", choices=sorted(AGENTS), default="bisim",
+                        help="bisim: cheetah_dbc against BisimAgent; baseline: cheetah_sac_pixel against BaselineAgent")
+    parser.add_argument("--out", type=Path, default=None, help="folder for the report (.md, .json), named by --agent")
     args = parser.parse_args(argv)
-    agent_class = import_reference(args.reference.resolve())  # a bad path fails before any env is built
+    agent = AGENTS[args.agent]
+    agent_class = import_reference(args.reference.resolve(), agent)  # a bad path fails before any env is built
     torch.set_num_threads(1)
-    cfg = dbc_config("fp32", Sizes())
+    cfg = dbc_config("fp32", Sizes(), agent.preset)
     batches, heldout = replay_batches(cfg, args.steps, args.updates)
     dtypes = {name: compare(agent_class, cfg, batches, heldout, dtype) for name, dtype in DTYPES.items()}
     same = same_update(dtypes["float64"])
     report = {"command": "python -m plls_bench.validation.dbc_reference_parity " + " ".join(argv or sys.argv[1:]),
               "reference_commit": reference_commit(args.reference), "machine": machine(), "steps": args.steps,
-              "updates": args.updates, "batch": cfg.algo.dbc.batch_size, "same_update": same,
+              "updates": args.updates, "batch": cfg.algo.dbc.batch_size, "agent": args.agent, "same_update": same,
               "verdict": verdict(dtypes["float64"]),
               "dtypes": dtypes}
     print(markdown(report))
     if args.out is not None:
-        atomic_write_json(args.out / "dbc_reference_parity.json", report)
-        atomic_write_bytes(args.out / "dbc_reference_parity.md", (markdown(report) + "\n").encode())
+        atomic_write_json(args.out / f"{agent.report}.json", report)
+        atomic_write_bytes(args.out / f"{agent.report}.md", (markdown(report) + "\n").encode())
     return 0 if same else 1
 
 

@@ -71,9 +71,9 @@ def ppo_config(precision: str, sizes: Sizes) -> Config:
                                 n_epochs=sizes.ppo_epochs, batch_size=sizes.ppo_batch)])
 
 
-def dbc_config(precision: str, sizes: Sizes) -> Config:
-    """``cheetah_dbc`` at budget=quick in ``precision``, with the minibatch size if set."""
-    return compose(["+experiment=cheetah_dbc", "budget=quick", "progress=false", f"precision={precision}",
+def dbc_config(precision: str, sizes: Sizes, preset: str = "cheetah_dbc") -> Config:
+    """``preset`` (a ``dbc``-runner preset) at budget=quick in ``precision``, with the minibatch size if set."""
+    return compose([f"+experiment={preset}", "budget=quick", "progress=false", f"precision={precision}",
                     *_overrides("algo.dbc", batch_size=sizes.dbc_batch)])
 
 
