@@ -16,7 +16,7 @@ lint: setup-dev  ## ruff over the whole tree (rules and why: pyproject.toml, [to
 test: setup-dev  ## the test suite CI runs (2 cores, no GPU)
 	$(PY) -m pytest
 
-test-fast: setup-dev  ## the tests not marked slow (minutes instead of a quarter hour)
+test-fast: setup-dev  ## the tests not marked slow (minutes instead of the full suite's ~30 min)
 	$(PY) -m pytest -m "not slow"
 
 docs: setup-dev  ## the docs site from docs/ and results/ into site/, strict: a broken link or page fails
