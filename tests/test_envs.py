@@ -53,6 +53,34 @@ def test_cheetah_renders_stacked_pixels_and_repeats_actions(runs_dir: Path) -> N
     env.close()
 
 
+def test_cheetah_reward_and_frames_are_dm_controls_stepped_by_hand(runs_dir: Path) -> None:
+    """The pixel pipeline behind pixel SAC and DBC (docs/decisions.md#d27): an agent step's reward is
+    the sum of dm_control's rewards over the repeated physics steps, its newest frame is dm_control's
+    render after them, and the stack holds the last ``frame_stack`` frames, oldest first."""
+    cfg = env_cfg("cheetah", runs_dir)
+    env = make_env(cfg)
+    from dm_control import suite  # after make_env, which picks the GL backend before mujoco loads
+
+    obs, _ = env.reset(seed=3)
+    by_hand = suite.load("cheetah", "run", task_kwargs={"random": 3, "time_limit": float("inf")})
+    by_hand.reset()
+
+    def render() -> np.ndarray:
+        return by_hand.physics.render(cfg.image_size, cfg.image_size, camera_id=cfg.camera_id).transpose(2, 0, 1)
+
+    frames = [render()] * cfg.frame_stack
+    assert np.array_equal(obs, np.concatenate(frames)), "reset: the first render, stacked"
+    rng = np.random.default_rng(0)
+    for _ in range(cfg.frame_stack + 1):
+        action = rng.uniform(-1, 1, size=env.action_space.shape).astype(np.float32)
+        obs, reward, *_ = env.step(action)
+        expected = sum(by_hand.step(action.astype(np.float64)).reward for _ in range(cfg.action_repeat))
+        frames = [*frames[1:], render()]
+        assert reward == pytest.approx(expected, rel=1e-12), "the reward of every repeated physics step, summed"
+        assert np.array_equal(obs, np.concatenate(frames)), "the newest render last, the oldest dropped"
+    env.close()
+
+
 def _floor_texture_rgb(env: gym.Env) -> np.ndarray:
     """The mean colour ``(3,)`` of the model's floor checker texture."""
     model = env.unwrapped._env.physics.model
