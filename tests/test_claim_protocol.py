@@ -147,14 +147,15 @@ def test_only_decided_readings_that_differ_count_as_depending_on_the_reading() -
 
 def test_a_comparison_where_neither_arm_solves_the_task_is_not_made(tmp_path: Path) -> None:
     # MountainCar's solve criterion is 90 (claims.yaml, solved_at): returns near 0 never reach the flag
-    text = "PL-LS with PPO beats PPO on MountainCar (final return) [Gaussian"
-    arm(tmp_path / "stuck", "mountaincar_plls_ppo", 5, [0, 10, 20], lambda seed, i: -1e-4 * (seed + 1))
-    arm(tmp_path / "stuck", "mountaincar_ppo", 5, [0, 10, 20], lambda seed, i: -2e-4 * (seed + 1))
+    # (the gSDE row: it plans the paper's 7 trials per arm, claims.yaml)
+    text = "PL-LS with PPO beats PPO on MountainCar (final return) [gSDE"
+    arm(tmp_path / "stuck", "mountaincar_plls_ppo_gsde", 7, [0, 10, 20], lambda seed, i: -1e-4 * (seed + 1))
+    arm(tmp_path / "stuck", "mountaincar_ppo_gsde", 7, [0, 10, 20], lambda seed, i: -2e-4 * (seed + 1))
     stuck = row(claims(tmp_path / "stuck", tmp_path / "out1"), text)
     assert stuck["verdict"] == "not made: neither arm solves the task"
     assert stuck["reason"].startswith("no trial of either arm reaches mountaincar's solve criterion 90")
-    arm(tmp_path / "solves", "mountaincar_plls_ppo", 5, [0, 10, 20], lambda seed, i: 93.0 + seed)
-    arm(tmp_path / "solves", "mountaincar_ppo", 5, [0, 10, 20], lambda seed, i: -2e-4 * (seed + 1))
+    arm(tmp_path / "solves", "mountaincar_plls_ppo_gsde", 7, [0, 10, 20], lambda seed, i: 93.0 + seed)
+    arm(tmp_path / "solves", "mountaincar_ppo_gsde", 7, [0, 10, 20], lambda seed, i: -2e-4 * (seed + 1))
     assert row(claims(tmp_path / "solves", tmp_path / "out2"), text)["verdict"] == "reproduced"
 
 

@@ -3,6 +3,7 @@ at the evaluations every trial of both reaches; a comparison needs 5 trials per 
 and a threshold row 3."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pandas as pd
@@ -43,26 +44,29 @@ def test_arms_at_different_budgets_are_judged_at_the_common_evaluation(tmp_path:
     # PL-LS to 1,024,000 env steps (64 iterations of 16 x 1000): flat at -10 until iteration 10, then 200.
     # PPO to 160,000 (10 iterations): 50 throughout. Each arm's own final says PL-LS wins (200 vs 50);
     # at 160,000 env steps, the last evaluation both reach, PPO leads in every pair of trials.
-    arm(tmp_path / "runs", "carracing_plls_ppo", 5, list(range(0, 65, 2)),
+    # 8 trials per arm: the row's planned n (claims.yaml)
+    arm(tmp_path / "runs", "carracing_plls_ppo", 8, list(range(0, 65, 2)),
         lambda seed, i: -10.0 + seed if i <= 10 else 200.0 + seed, "budget.eval_every_env_steps=32000")
-    arm(tmp_path / "runs", "carracing_ppo", 5, list(range(0, 11, 2)), lambda seed, i: 50.0 + seed,
+    arm(tmp_path / "runs", "carracing_ppo", 8, list(range(0, 11, 2)), lambda seed, i: 50.0 + seed,
         "budget.train_env_steps=160000", "budget.eval_every_env_steps=32000")
     table = claims(tmp_path / "runs", tmp_path / "out")
     beats = row(table, FIG18)
     assert beats["suite_value"] == -60 and beats["verdict"] == "not reproduced"
-    assert beats["budget"] == "quick (5 + 5 trials), at 160,000 env steps (iteration 10)"
-    # the values up to iteration 10, not 202 at iteration 64; Welch's t = -60 / sqrt(2.5 / 5 + 2.5 / 5), and
-    # no split of the 10 trials is more extreme than the observed one or its mirror: p = 2 / C(10, 5)
-    assert beats["suite"].startswith("-8 vs 52 (final, mean of the last 3 evaluations); "
-                                     "Welch t = -60.00, p = 0.0079 (the larger of permutation 0.0079")
-    # Holm over the tested primary comparisons (this row and the variance row, p = 1): 2 x 2 / 252
-    assert beats["p_adjusted"] == pytest.approx(2 * 2 / 252)
-    assert beats["reason"] == ("Holm-adjusted p = 0.016 over 2 primary comparisons <= 0.05, "
+    assert beats["budget"] == "quick (8 + 8 trials), at 160,000 env steps (iteration 10)"
+    # the values up to iteration 10, not 203.5 at iteration 64; Welch's t = -60 / sqrt(6 / 8 + 6 / 8), and
+    # no split of the 16 trials is more extreme than the observed one or its mirror: p = 2 / C(16, 8)
+    p = 2 / math.comb(16, 8)
+    assert beats["suite"].startswith("-6.5 vs 53.5 (final, mean of the last 3 evaluations); "
+                                     f"Welch t = -48.99, p = {p:.2g} (the larger of permutation {p:.2g}")
+    # Holm over all 16 primary comparisons claims.yaml declares; the untested ones enter at p = 1 (the
+    # variance row plans 10 per arm: at 8 + 8 it is an interim look)
+    assert beats["p_adjusted"] == pytest.approx(16 * p)
+    assert beats["reason"] == ("Holm-adjusted p = 0.0025 over 16 primary comparisons <= 0.05, "
                                "against the claim's direction")
     variance = row(table, "PPO has the larger variance")  # judged on the same evaluations
-    assert variance["budget"] == beats["budget"]
+    assert variance["budget"] == beats["budget"] and variance["verdict"] == "interim (below the planned n)"
     stats = pd.read_csv(render_stats(tmp_path)).query("figure == 'fig18'").set_index("method")  # the stats table too
-    assert stats["compared_at"].tolist() == [10, 10] and stats.loc["PL-LS + PPO", "final_mean"] == -8
+    assert stats["compared_at"].tolist() == [10, 10] and stats.loc["PL-LS + PPO", "final_mean"] == -6.5
     fig = BY_ID["fig18"].build(Runs(tmp_path / "runs"), BY_ID["fig18"], Options("iteration", PAPER_DIR)).figure
     marks = [line for line in fig.axes[0].get_lines() if line.get_label() == "compared at 10"]
     assert len(marks) == 1 and list(marks[0].get_xdata()) == [10, 10]
@@ -71,21 +75,39 @@ def test_arms_at_different_budgets_are_judged_at_the_common_evaluation(tmp_path:
 def test_the_sampled_action_row_judges_the_same_episodes_with_sampled_actions(tmp_path: Path) -> None:
     # Acting on the mean, PL-LS leads (200 vs 50); sampling actions, PPO does (50 vs 300). The
     # paper does not say which its test episodes did, so each reading gets its own verdict.
-    arm(tmp_path / "runs", "carracing_plls_ppo", 5, [0, 32, 64], lambda seed, i: 200.0 + seed, stochastic_offset=-150)
-    arm(tmp_path / "runs", "carracing_ppo", 5, [0, 32, 64], lambda seed, i: 50.0 + seed, stochastic_offset=250)
+    # 8 trials per arm: the deterministic row plans 8, the sampled-actions row 5 (claims.yaml), so the
+    # sampled row reads each arm's seeds 0-4 and the trials past its plan never enter it
+    arm(tmp_path / "runs", "carracing_plls_ppo", 8, [0, 32, 64], lambda seed, i: 200.0 + seed, stochastic_offset=-150)
+    arm(tmp_path / "runs", "carracing_ppo", 8, [0, 32, 64], lambda seed, i: 50.0 + seed, stochastic_offset=250)
     table = claims(tmp_path / "runs", tmp_path / "out")
     deterministic, sampled = row(table, f"{FIG18} (final return)"), row(table, f"{FIG18} (final return; sampled")
     assert (deterministic["suite_value"], deterministic["verdict"]) == (150, "reproduced")
     assert (sampled["suite_value"], sampled["verdict"]) == (-250, "not reproduced")
-    assert sampled["suite"].startswith("52 vs 302 (final, mean of the last 3 evaluations)")
+    assert sampled["suite"].startswith("52 vs 302 (final, mean of the last 3 evaluations)")  # seeds 0-4: 50 + 2
     # a sensitivity reading, decided on its own p outside the Holm family of primary comparisons
     assert sampled["reason"] == ("p = 0.0079 (a sensitivity reading, outside the Holm family) <= 0.05, "
                                  "against the claim's direction")
-    assert sampled["budget"] == deterministic["budget"] == "quick (5 + 5 trials), at 1,024,000 env steps (iteration 64)"
+    assert deterministic["budget"] == "quick (8 + 8 trials), at 1,024,000 env steps (iteration 64)"
+    assert sampled["budget"] == ("quick (5 + 5 trials), at 1,024,000 env steps (iteration 64); "
+                                 "each arm's seeds 0-4 of 8 + 8 finished trials (the planned n, 5)")
     fig18 = BY_ID["fig18"].build(Runs(tmp_path / "runs"), BY_ID["fig18"], Options("iteration", PAPER_DIR))
-    final = fig18.data.query("x == 64").set_index("series")["mean"]  # Fig. 18 draws both readings
-    assert final.to_dict() == {"PL-LS + PPO": 202, "PL-LS + PPO, sampled actions": 52, "PPO": 52,
-                               "PPO, sampled actions": 302}
+    final = fig18.data.query("x == 64").set_index("series")["mean"]  # Fig. 18 draws both readings, all trials
+    assert final.to_dict() == {"PL-LS + PPO": 203.5, "PL-LS + PPO, sampled actions": 53.5, "PPO": 53.5,
+                               "PPO, sampled actions": 303.5}
+
+
+def test_a_row_below_its_planned_n_is_an_interim_look_not_a_verdict(tmp_path: Path) -> None:
+    """Fig. 18's row plans 8 trials per arm (claims.yaml): at 6 + 6 its test is shown, and a clear
+    difference is still no verdict, so the count at which a campaign regenerates the table cannot
+    choose the verdict (docs/verdicts.md, "One look per row")."""
+    arm(tmp_path / "runs", "carracing_plls_ppo", 6, [0, 32, 64], lambda seed, i: 200.0 + seed)
+    arm(tmp_path / "runs", "carracing_ppo", 6, [0, 32, 64], lambda seed, i: 50.0 + seed)
+    beats = row(claims(tmp_path / "runs", tmp_path / "out"), f"{FIG18} (final return)")
+    assert beats["verdict"] == "interim (below the planned n)"
+    assert beats["reason"].startswith(f"an interim look at 6 + 6 of the planned 8 per arm: its own p = "
+                                      f"{2 / math.comb(12, 6):.2g} (in the claim's direction) is not a verdict until "
+                                      "then; to the planned 8 per arm: 2 + 2 more trials, about ")
+    assert math.isnan(beats["p_adjusted"])  # outside the Holm family until it is judged
 
 
 def test_the_stats_table_reads_the_final_return_as_the_claims_rows_do(tmp_path: Path) -> None:
@@ -227,20 +249,20 @@ def test_a_comparison_with_a_baseline_that_fails_its_check_is_not_made(tmp_path:
     DBC "beats" it in every pair of trials, but the rows are not made, and say why and what they
     would have read. With a DBC that reaches the published range the same PL-LS arm is judged."""
     plls = "PL-LS with DBC obtains higher returns than DBC"
-    arm(tmp_path / "stuck", "cheetah_plls_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 50.0 + seed)
-    arm(tmp_path / "stuck", "cheetah_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 1.0 + seed)
+    arm(tmp_path / "stuck", "cheetah_plls_dbc", 6, [0, 25_000, 50_000], lambda seed, i: 50.0 + seed)
+    arm(tmp_path / "stuck", "cheetah_dbc", 6, [0, 25_000, 50_000], lambda seed, i: 1.0 + seed)
     stuck = claims(tmp_path / "stuck", tmp_path / "out1")
     assert row(stuck, "Suite DBC reaches the published pixel range")["verdict"] == "not reproduced"
     for text in (plls, "PL-LS with DBC learns faster than DBC"):
         gated = row(stuck, text)
         assert gated["verdict"] == "not made: baseline fails its check" and gated["suite_value"] == 49
         assert gated["reason"].startswith("its baseline check 'Suite DBC reaches the published pixel range")
-        assert "is not reproduced (3 ± 1.581 (5 trials" in gated["reason"]
-        assert "its own reading: reproduced, Holm-adjusted p = 0.016 over 2 primary comparisons" in gated["reason"]
+        assert "is not reproduced (3.5 ± 1.871 (6 trials" in gated["reason"]
+        assert "its own reading: reproduced, Holm-adjusted p = 0.035 over 16 primary comparisons" in gated["reason"]
     assert "1 not made: baseline fails its check" not in (tmp_path / "out1" / "tables" / "claims.md").read_text()
     assert "2 not made: baseline fails its check" in (tmp_path / "out1" / "tables" / "claims.md").read_text()
-    arm(tmp_path / "learns", "cheetah_plls_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 400.0 + seed)
-    arm(tmp_path / "learns", "cheetah_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 250.0 + 10.0 * seed)
+    arm(tmp_path / "learns", "cheetah_plls_dbc", 6, [0, 25_000, 50_000], lambda seed, i: 400.0 + seed)
+    arm(tmp_path / "learns", "cheetah_dbc", 6, [0, 25_000, 50_000], lambda seed, i: 250.0 + 10.0 * seed)
     learns = claims(tmp_path / "learns", tmp_path / "out2")
     assert row(learns, plls)["verdict"] == "reproduced" and "baseline check" not in row(learns, plls)["reason"]
 
@@ -248,13 +270,13 @@ def test_a_comparison_with_a_baseline_that_fails_its_check_is_not_made(tmp_path:
 def test_a_pixel_pipeline_that_fails_its_check_leaves_dbc_and_fig21_unjudged(tmp_path: Path) -> None:
     """Fig. 21 requires DBC's check, which requires the pixel-SAC row (decisions D27): with pixel SAC far
     below CURL's 182 a DBC that reaches the published range is not judged, nor is Fig. 21; with pixel
-    SAC above it both are. Both DBC arms run 5 trials, the protocol's minimum for a comparison."""
+    SAC above it both are. Both DBC arms run 6 trials, the rows' planned n (claims.yaml)."""
     plls, dbc, pixel = ("PL-LS with DBC obtains higher returns than DBC", "Suite DBC reaches the published pixel range",
                         "Suite pixel SAC reaches CURL's Pixel SAC")
     for name, pixel_return in (("broken", 5.0), ("works", 250.0)):
         runs = tmp_path / name
-        arm(runs, "cheetah_plls_dbc", 5, [0, 25_000, 50_000], lambda seed, i: 300.0 + i / 100 + seed)
-        arm(runs, "cheetah_dbc", 5, [0, 25_000, 50_000], lambda seed, i: i / 100 + 10.0 * seed)
+        arm(runs, "cheetah_plls_dbc", 6, [0, 25_000, 50_000], lambda seed, i: 300.0 + i / 100 + seed)
+        arm(runs, "cheetah_dbc", 6, [0, 25_000, 50_000], lambda seed, i: i / 100 + 10.0 * seed)
         arm(runs, "cheetah_sac_pixel", 3, [0, 12_500, 25_000], lambda seed, i, r=pixel_return: r + seed)
         table = claims(runs, tmp_path / f"out_{name}")
         verdicts = [row(table, text)["verdict"] for text in (pixel, dbc, plls)]
@@ -269,9 +291,9 @@ def test_a_pixel_pipeline_that_fails_its_check_leaves_dbc_and_fig21_unjudged(tmp
 
 def test_a_baseline_check_not_yet_judged_is_noted_on_the_comparisons_that_require_it(tmp_path: Path) -> None:
     # every PPO seed beats the random policy on its own episodes (-30 against its -39.2), but their mean's
-    # t-interval, [-62, 38], straddles its upper CI bound -32.3
-    arm(tmp_path / "runs", "carracing_plls_ppo", 5, [0, 32, 64], lambda seed, i: 100.0 + seed)
-    arm(tmp_path / "runs", "carracing_ppo", 5, [0, 32, 64], lambda seed, i: 60.0 if seed == 4 else -30.0)
+    # t-interval, [-45, 8], straddles its upper CI bound -32.3 (8 trials per arm: Fig. 18's planned n)
+    arm(tmp_path / "runs", "carracing_plls_ppo", 8, [0, 32, 64], lambda seed, i: 100.0 + seed)
+    arm(tmp_path / "runs", "carracing_ppo", 8, [0, 32, 64], lambda seed, i: 60.0 if seed == 4 else -30.0)
     table = claims(tmp_path / "runs", tmp_path / "out")
     assert row(table, "Suite PPO beats the random policy")["verdict"] == "inconclusive"
     beats = row(table, FIG18)

@@ -41,6 +41,7 @@ from plls_bench.report.evidence.returns import DEFAULT_X_AXIS
 from plls_bench.report.evidence.table_formats import NA, Table, fmt, read_paper
 from plls_bench.report.evidence.verdicts import (
     INCONCLUSIVE,
+    INTERIM,
     NOT_MADE,
     NOT_REPRODUCED,
     NOT_RUN,
@@ -173,19 +174,28 @@ def _check_chains(rows: list[dict[str, str]], paper_dir: Path) -> None:
 
 
 def holm_judged(claims: list[dict[str, str]], judged: dict[str, Judged], settings: ClaimSettings) -> dict[str, Judged]:
-    """The primary comparison rows (claims.yaml, ``primary``) that were tested, read again at their
-    Holm-corrected p over that family; every other row as judged."""
-    family = [c["claim"] for c in claims if c["claim"] in settings.comparisons
-              and settings.comparisons[c["claim"]].primary and judged[c["claim"]][0] is not None
-              and judged[c["claim"]][0].comparison is not None and not judged[c["claim"]][0].unreadable
-              and judged[c["claim"]][1] != NOT_RUN]
-    adjusted = holm([judged[name][0].comparison.p for name in family])
+    """The primary comparison rows (claims.yaml, ``primary``) judged at their planned n, read again at
+    their Holm-corrected p; every other row as judged. The family is every primary row claims.yaml
+    declares, fixed before the data: a row not yet judged enters at p = 1, so no row's verdict
+    weakens when another row's trials arrive (Holm's adjusted p never rises as a raw p falls)."""
+    family = [c["claim"] for c in claims
+              if c["claim"] in settings.comparisons and settings.comparisons[c["claim"]].primary]
+    tested = [name for name in family if _judged_at_planned_n(judged[name])]
+    adjusted = dict(zip(family, holm([judged[name][0].comparison.p if name in tested else 1.0 for name in family])))
     out = dict(judged)
-    for name, p in zip(family, adjusted):
+    for name in tested:
         est = judged[name][0]
-        est = replace(est, comparison=adjust(est.comparison, float(p)))
+        est = replace(est, comparison=adjust(est.comparison, float(adjusted[name])))
         out[name] = (est, *comparison_verdict(name, est, settings, len(family)), est.budget)
     return out
+
+
+def _judged_at_planned_n(judged: Judged) -> bool:
+    """A comparison row whose test is a verdict: tested, readable, and neither short of trials nor an
+    interim look."""
+    est, outcome = judged[0], judged[1]
+    return (est is not None and est.comparison is not None and not est.unreadable
+            and outcome not in (NOT_RUN, INTERIM))
 
 
 DECIDED = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE)  # verdicts on the data; not run / not made say nothing yet
@@ -239,8 +249,10 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     summary = ", ".join(f"{counts.get(v, 0)} {v}" for v in shown)
     caption = (f"{len(records)} claims: {summary}; {reading_summary(settings, final)}. "
                f"How verdicts are decided: docs/verdicts.md. A comparison (A beats B, A has the smaller spread) needs "
-               f"{settings.min_n} finished trials per arm; it is Welch's t at the larger of its permutation and "
-               f"t-distribution p, Holm-corrected over the primary comparisons, at alpha {settings.alpha:g}: "
+               f"{settings.min_n} finished trials per arm and is judged once, on each arm's seeds 0 to planned n - 1 "
+               "(results/paper/claims.yaml; a look between the two is interim, shown but no verdict); it is Welch's t "
+               "at the larger of its permutation and t-distribution p, Holm-corrected over every primary comparison "
+               f"the settings declare (one not yet judged enters at p = 1), at alpha {settings.alpha:g}: "
                "reproduced where it rejects in the claim's direction, not reproduced where it rejects the other way "
                "or TOST shows the arms equivalent within "
                "the claim's margin (results/paper/claims.yaml), inconclusive otherwise, with the trials 80% power "

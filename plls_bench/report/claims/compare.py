@@ -13,6 +13,7 @@ import numpy as np
 from plls_bench.report.claims.values import budget_text, policy_of
 from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.looks import INTERIM_LOOK, look
 from plls_bench.report.evidence.matched import Matched, NotJudged, finished_counts, matched, require_trials
 from plls_bench.report.evidence.protocol import (
     A_BETTER,
@@ -27,7 +28,15 @@ from plls_bench.report.evidence.returns import DEFAULT_X_AXIS, Curves, load_curv
 from plls_bench.report.evidence.stats import ahead_from, probability_of_improvement
 from plls_bench.report.evidence.table_formats import fmt, fmt_ci
 from plls_bench.report.evidence.trials import Experiment
-from plls_bench.report.evidence.verdicts import INCONCLUSIVE, NOT_REPRODUCED, NOT_RUN, NOT_SOLVED, REPRODUCED, Estimate
+from plls_bench.report.evidence.verdicts import (
+    INCONCLUSIVE,
+    INTERIM,
+    NOT_REPRODUCED,
+    NOT_RUN,
+    NOT_SOLVED,
+    REPRODUCED,
+    Estimate,
+)
 
 
 def arm_mix(runs: Runs, exp: Experiment, name: str | None = None) -> str:
@@ -62,16 +71,26 @@ def _curves(runs: Runs, name: str, claim: dict[str, str]) -> Curves:
     return curves
 
 
-def pair_of(runs: Runs, claim: dict[str, str]) -> tuple[Matched, str]:
-    """Both arms' finished trials on the evaluations they all reach, and the budget text saying
-    where they are judged and which commits and devices each arm mixes."""
+def pair_of(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> tuple[Matched, str]:
+    """Both arms' finished trials (of seeds 0 to the planned n - 1) on the evaluations
+    they all reach, and the budget text saying where they are judged, which trials enter, and which
+    commits and devices each arm mixes."""
     a, b = _curves(runs, claim["experiment"], claim), _curves(runs, claim["baseline"], claim)
     counts = finished_counts(a, b)
     require_trials(counts, budget_text(runs, claim["experiment"], claim["baseline"], n=counts), minimum=1)
-    pair = matched(a, b, runs=runs)
+    planned = settings.planned(claim["claim"])
+    pair = matched(a, b, runs=runs, first=planned)
     mixes = [m for m in (arm_mix(runs, c.experiment) for c in (a, b)) if m]
     budget = f"{budget_text(runs, claim['experiment'], claim['baseline'], n=pair.counts)}, {pair.at}"
-    return pair, budget + "".join(f"; {m}" for m in mixes)
+    return pair, budget + first_trials_text(counts, pair.counts, planned) + "".join(f"; {m}" for m in mixes)
+
+
+def first_trials_text(finished: list[int], judged: list[int], planned: int | None) -> str:
+    """"; each arm's seeds 0-5 of 6 + 7 finished trials (the planned n, 6)" where a row leaves trials out."""
+    if finished == judged:
+        return ""
+    return (f"; each arm's seeds 0-{(planned or 1) - 1} of {' + '.join(map(str, finished))} finished trials "
+            f"(the planned n, {planned})")
 
 
 def _unsolved(runs: Runs, claim: dict[str, str], settings: ClaimSettings, pair: Matched) -> str | None:
@@ -103,7 +122,7 @@ def _poi_text(x: np.ndarray, y: np.ndarray) -> str:
 def p_improvement(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Estimate:
     """A > B on each trial's ``final`` return (mean over the last ``final_tail`` evaluations both arms
     reach; the single last one is a sensitivity reading) or ``auc`` (mean over the curve)."""
-    pair, budget = pair_of(runs, claim)
+    pair, budget = pair_of(runs, claim, settings)
     score = claim["param"].partition(":")[0]
     tail = settings.final_tail
     x, y = ((tail_mean(m, tail) if score == "final" else m.mean(axis=1)) for m in pair.values)
@@ -130,7 +149,7 @@ def std_gap(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Estim
     """A has the smaller spread across trials of the mean return over the evaluations with x >=
     ``from_x``: Brown-Forsythe (each trial's absolute deviation from its arm's median) compared
     under the protocol; std(B) - std(A) shown beside it."""
-    pair, budget = pair_of(runs, claim)
+    pair, budget = pair_of(runs, claim, settings)
     keep = pair.grid >= float(claim["from_x"] or 0)
     if not keep.any():
         raise NotJudged(f"no evaluations at or after {claim['from_x']}")
@@ -148,7 +167,7 @@ def ahead_point(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> E
     """A ahead of B from about x (the claim's threshold): A's mean return over the evaluations from
     the threshold on beats B's under the protocol; the x from which A's mean curve stays above B's
     is shown beside it."""
-    pair, budget = pair_of(runs, claim)
+    pair, budget = pair_of(runs, claim, settings)
     keep = pair.grid >= float(claim["threshold"])
     if not keep.any():
             raise NotJudged(f"no evaluations at or after {claim['threshold']}")
@@ -171,6 +190,12 @@ def comparison_verdict(claim: str, est: Estimate, settings: ClaimSettings, famil
         return NOT_SOLVED, est.unreadable
     if comp.outcome == TOO_FEW:
         return NOT_RUN, f"needs {settings.min_n} per arm, has {comp.n_a} + {comp.n_b}"
+    planned = settings.planned(claim)
+    if look(comp.n_a, comp.n_b, planned, settings.min_n) == INTERIM_LOOK:
+        reading = {A_BETTER: "in the claim's direction", B_BETTER: "against the claim's direction",
+                   EQUIVALENT: "equivalent within the margin"}.get(comp.outcome, "undecided")
+        return INTERIM, (f"an interim look at {comp.n_a} + {comp.n_b} of the planned {planned} per arm: "
+                         f"its own p = {comp.p:.2g} ({reading}) is not a verdict until then")
     basis = (f"Holm-adjusted p = {comp.p_adjusted:.2g} over {family} primary comparisons" if family
              else f"p = {comp.p:.2g} (a sensitivity reading, outside the Holm family)")
     if comp.outcome == A_BETTER:
@@ -180,7 +205,6 @@ def comparison_verdict(claim: str, est: Estimate, settings: ClaimSettings, famil
     if comp.outcome == EQUIVALENT:
         margin = fmt(comp.margin or 0.0)
         return NOT_REPRODUCED, f"{basis}; equivalent within ±{margin} (TOST p = {comp.p_equivalence:.2g})"
-    planned = settings.comparisons[claim].planned_n if claim in settings.comparisons else None
     need = (f"80% power at the observed effect needs {comp.n_for_power} per arm" if comp.n_for_power
             else "no observed effect to plan for" if not comp.effect else "80% power needs more than 1000 per arm")
     return INCONCLUSIVE, f"{basis} > {comp.alpha:g}; {need}" + (f" (planned: {planned})" if planned else "")

@@ -12,7 +12,7 @@ from plls_bench.pipeline.rates import load_rates
 from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.protocol import TOO_FEW, Comparison
-from plls_bench.report.evidence.verdicts import INCONCLUSIVE, NOT_RUN
+from plls_bench.report.evidence.verdicts import INCONCLUSIVE, INTERIM, NOT_RUN
 
 POWER_TABLE = "results/tables/power.md"
 
@@ -71,13 +71,14 @@ def more_trials(experiment: str, baseline: str, budget: str | None, counts: tupl
 
 def undecided_cost(runs: Runs, claim: dict[str, str], comp: Comparison | None, outcome: str,
                    settings: ClaimSettings) -> str | None:
-    """For a comparison row not decided yet (not run for too few trials, or inconclusive): the trials
+    """For a comparison row not decided yet (not run for too few trials, an interim look, or inconclusive): the trials
     each arm needs to its planned n (claims.yaml), or, once there, to the n that 80% power needs at
     the observed effect, and their compute; None for any other row."""
-    undecided = outcome == INCONCLUSIVE or (outcome == NOT_RUN and comp is not None and comp.outcome == TOO_FEW)
+    too_few = outcome == NOT_RUN and comp is not None and comp.outcome == TOO_FEW
+    undecided = outcome in (INCONCLUSIVE, INTERIM) or too_few
     if comp is None or not undecided or claim["claim"] not in settings.comparisons or not claim["baseline"]:
         return None  # a sweep's arms are its other values, each a variant: its power row costs them
-    target, label = max(settings.comparisons[claim["claim"]].planned_n, settings.min_n), "the planned {}"
+    target, label = settings.planned(claim["claim"]), "the planned {}"
     if min(comp.n_a, comp.n_b) >= target:
         if not comp.n_for_power or comp.n_for_power <= min(comp.n_a, comp.n_b):
             return None

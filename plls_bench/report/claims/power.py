@@ -25,7 +25,10 @@ CAPTION = (
     "t-distribution p, whose power stays within about one point of it: tests/test_verdict_calibration.py); "
     "at alpha / m: the same at the "
     "first step of Holm's correction over the m primary comparisons (a bound: later steps need less). "
-    "Observed effects from 3 trials are themselves noisy, so these are orders of magnitude. Cost per trial: "
+    "Observed effects from 3 trials are themselves noisy, so these are orders of magnitude. Planned n: the "
+    "trials per arm the row is judged at, once (claims.yaml's planned_n, raised where the test could not "
+    "reject at that n: a primary row Holm-corrected over m needs 2 / C(2n, n) <= alpha / m; docs/verdicts.md, "
+    "One look per row). Cost per trial: "
     "the dry run's estimate of one more trial of each arm (python -m plls_bench.reproduce --dry-run), "
     "from the rates in bench/throughput.json measured on the reference CPU.")
 
@@ -37,7 +40,7 @@ def _hours(seconds: float | None) -> str:
 def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int) -> tuple[list[str], dict]:
     record = {"claim": claim["claim"], "arms": f"{claim['experiment']} vs {claim['baseline'] or 'other values'}",
               "paper_n": settings.comparisons[claim["claim"]].paper_n,
-              "planned_n": settings.comparisons[claim["claim"]].planned_n}
+              "planned_n": settings.planned(claim["claim"])}
     try:
         comp = KINDS[claim["kind"]](runs, claim, settings).comparison
     except NotJudged as err:
@@ -75,7 +78,7 @@ def power_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     """One row per comparison claim of ``claims.yaml``."""
     claims = read_claims(opts.paper_dir)
     settings = load_settings(opts.paper_dir, [c["claim"] for c in claims])
-    family = sum(s.primary for s in settings.comparisons.values())
+    family = settings.family_size
     rows, records = [], []
     for claim in claims:
         if claim["claim"] in settings.comparisons:

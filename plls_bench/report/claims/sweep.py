@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 from plls_bench.pipeline.sweeps import load_sweep
-from plls_bench.report.claims.compare import arm_mix
+from plls_bench.report.claims.compare import arm_mix, first_trials_text
 from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged, finished_counts, require_trials
@@ -46,7 +46,8 @@ def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Es
         raise NotJudged(f"arms at another budget than the preset's own runs ({budgets[base]}): "
                         f"{', '.join(other)}", budget)
     require_trials(counts, budget, minimum=1)  # fewer than min_n: described, not tested
-    pair = matched_arms(runs, arms)
+    planned = settings.planned(claim["claim"])
+    pair = matched_arms(runs, arms, first=planned)
     final = [tail_mean(v, settings.final_tail) for v in pair.values]
     margin = settings.comparisons[claim["claim"]].margin if claim["claim"] in settings.comparisons else None
     compared = [(arms[i].label, compare_arms(final[base], final[i], margin=margin, alpha=settings.alpha,
@@ -61,8 +62,8 @@ def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Es
         f"v={label} {fmt(c.mean_a)} vs {fmt(c.mean_b)}, {c.text}, rliable P = {fmt_ci(p, ci, 3)}"
         for label, c, p, ci in compared)
     mixes = "".join(f"; {m}" for m in (arm_mix(runs, a.exp, f"{key}={a.label}") for a in arms) if m)
-    return Estimate(row.effect, (math.nan, math.nan), text, f"{budget}, {pair.at}{mixes}", reach=float(pair.grid[-1]),
-                    comparison=row)
+    where = f"{budget}, {pair.at}{first_trials_text(counts, pair.counts, planned)}{mixes}"
+    return Estimate(row.effect, (math.nan, math.nan), text, where, reach=float(pair.grid[-1]), comparison=row)
 
 
 def _weakness(comparison: Comparison) -> tuple[bool, float]:

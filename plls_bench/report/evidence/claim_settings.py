@@ -12,6 +12,8 @@ from typing import Any
 
 import yaml
 
+from plls_bench.report.evidence.looks import least_rejecting_n
+
 SETTINGS_FILE = "claims.yaml"
 PROTOCOL_KEYS = ("alpha", "power", "min_n", "final_tail", "threshold_min_n", "median_coverage")
 COMPARISON_KEYS = ("margin", "planned_n", "primary", "paper_n")
@@ -40,6 +42,15 @@ class ClaimSettings:
     anchors: dict[str, tuple[str, int | None]]          # claim -> (dispersion, published n)
     random_gates: dict[str, tuple[str, str]]             # claim -> (file, dotted key)
     readings: list[tuple[str, tuple[str, ...]]] = field(default_factory=list)  # (reading, rows of one claim)
+
+    @property
+    def family_size(self) -> int:
+        """The primary comparison rows Holm corrects together (all that are declared, tested or not)."""
+        return sum(c.primary for c in self.comparisons.values())
+
+    def planned(self, claim: str) -> int | None:
+        """The trials per arm a comparison row is judged at, once; None for a row without a plan."""
+        return self.comparisons[claim].planned_n if claim in self.comparisons else None
 
 
 def _fail(path: Path, where: str, problem: str) -> ValueError:
@@ -110,12 +121,26 @@ def load_settings(paper_dir: Path, claim_names: list[str] | None) -> ClaimSettin
         readings.append((str(node["reading"]), tuple(node["rows"])))
     solved = {str(k): (None if v is None else float(v))
               for k, v in _mapping(raw.get("solved_at", {}), path, "solved_at").items()}
-    return ClaimSettings(
+    settings = ClaimSettings(
         float(protocol["alpha"]), float(protocol["power"]), int(protocol["min_n"]), int(protocol["final_tail"]),
         int(protocol["threshold_min_n"]), float(protocol["median_coverage"]), solved,
         {k: _comparison(v, path, f"comparisons.{k}") for k, v in comparisons.items()},
         {k: (v["dispersion"], v.get("n")) for k, v in anchors.items()},
         {k: (str(v["file"]), str(v["key"])) for k, v in gates.items()}, readings)
+    _check_plans(settings, path)
+    return settings
+
+
+def _check_plans(settings: ClaimSettings, path: Path) -> None:
+    """Every planned n is at least the protocol's minimum and an n at which the row's test can reject
+    at all: alpha / (primary rows) at Holm's first step, alpha for a sensitivity reading."""
+    for name, plan in settings.comparisons.items():
+        level = settings.alpha / settings.family_size if plan.primary else settings.alpha
+        need = max(settings.min_n, least_rejecting_n(level))
+        if plan.planned_n < need:
+            raise _fail(path, f"comparisons.{name}.planned_n",
+                        f"{plan.planned_n} trials per arm cannot decide this row: it needs at least {need} (the "
+                        f"protocol's min_n {settings.min_n}; a p of {level:.3g} needs 2 / C(2n, n) <= {level:.3g})")
 
 
 def check_rows(settings: ClaimSettings, rows: list[dict[str, str]], paper_dir: Path) -> None:

@@ -14,6 +14,7 @@ from functools import reduce
 import numpy as np
 
 from plls_bench.report.evidence.load import MIN_TRIALS, Runs
+from plls_bench.report.evidence.looks import first_trials
 from plls_bench.report.evidence.returns import Curves
 from plls_bench.report.evidence.stats import complete
 from plls_bench.report.evidence.table_formats import fmt
@@ -54,10 +55,11 @@ def finished_counts(*arms: Curves) -> list[int]:
     return [int(c.finished_seeds().sum()) for c in arms]
 
 
-def matched(*arms: Curves, runs: Runs | None = None) -> Matched:
-    """Every arm's finished trials cut to the evaluation x values all of them reach; a finished
-    trial ending before its arm's last evaluation is a gap in ``runs`` (it pulls the x back)."""
-    masks = [c.finished_seeds() for c in arms]
+def matched(*arms: Curves, runs: Runs | None = None, first: int | None = None) -> Matched:
+    """Every arm's finished trials (of seeds 0 to ``first`` - 1: a row's planned n,
+    :mod:`~plls_bench.report.evidence.looks`) cut to the evaluation x values all of them reach; a
+    finished trial ending before its arm's last evaluation is a gap in ``runs`` (it pulls the x back)."""
+    masks = [first_trials(c.finished_seeds(), np.array(c.seeds), first) for c in arms]
     for arm, mask in zip(arms, masks):
         if not mask.any():
             raise NotJudged(f"no finished trials of {arm.experiment.name}")

@@ -41,7 +41,7 @@ A_BETTER, B_BETTER, EQUIVALENT, UNDECIDED, TOO_FEW = (
 class Comparison:
     """Arm a against arm b. ``p`` is the two-sided p a decision reads, the larger of Welch's t's
     (``statistic``) permutation p (``p_permutation``) and t-distribution p (``p_welch``), before any
-    family correction (``p_adjusted`` after it).
+    family correction (``p_adjusted`` after it; NaN until :func:`adjust` sets it).
     ``effect`` is mean(a) - mean(b). ``outcome``
     is read in the claim's ``direction``: "a better" when a is significantly greater
     (``direction="greater"``) or smaller (``"less"``) than b."""
@@ -257,7 +257,7 @@ def compare_arms(a: Sequence[float], b: Sequence[float], *, direction: str = "gr
     t, p, p_welch, p_permutation = tests["t"], tests["p"], tests["p_welch"], tests["p_permutation"]
     return Comparison(len(a), len(b), "Welch t (larger of permutation and t-distribution p)", t, p, p_welch,
                       p_permutation, effect, *means, *sds, tests["p_equivalence"], margin, direction, alpha,
-                      p, str(outcome), n_power, _text(t, p, p_welch, p_permutation))
+                      nan, str(outcome), n_power, _text(t, p, p_welch, p_permutation))
 
 
 def adjust(comparison: Comparison, p_adjusted: float) -> Comparison:

@@ -55,9 +55,10 @@ def scores(pair: Matched) -> dict[str, list[np.ndarray]]:
     return {"final": [v[:, -1] for v in pair.values], "mean": [v.mean(axis=1) for v in pair.values]}
 
 
-def matched_arms(runs: Runs, arms: list[Arm]) -> Matched:
-    """The arms' finished trials on the evaluations all of them reach (raises NotJudged)."""
-    return matched(*(a.curves for a in arms), runs=runs)
+def matched_arms(runs: Runs, arms: list[Arm], first: int | None = None) -> Matched:
+    """The arms' finished trials (of seeds 0 to ``first`` - 1) on the evaluations all
+    of them reach (raises NotJudged)."""
+    return matched(*(a.curves for a in arms), runs=runs, first=first)
 
 
 def va_mse(runs: Runs, arm: Arm, field: str) -> list[float]:

@@ -15,7 +15,10 @@ REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN = ("reproduced", "not reproduc
 NOT_MADE = "not made: baseline fails its check"
 # A comparison where neither arm solves the task (claims.yaml, solved_at) says nothing about either method.
 NOT_SOLVED = "not made: neither arm solves the task"
-VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, NOT_RUN, NOT_MADE, NOT_SOLVED)
+# A comparison between the protocol's least trials and its planned n: its test is shown, but a verdict
+# read at every count would be optional stopping (plls_bench.report.evidence.looks).
+INTERIM = "interim (below the planned n)"
+VERDICTS = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, INTERIM, NOT_RUN, NOT_MADE, NOT_SOLVED)
 
 
 @dataclass(frozen=True)

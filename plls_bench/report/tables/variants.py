@@ -31,7 +31,10 @@ def caption(settings: ClaimSettings) -> str:
         f"(plls_bench/report/evidence/protocol.py: two-sided p, alpha = {settings.alpha:g}, no test below "
         f"{settings.min_n} trials per arm), only where both arms ran at one budget, otherwise the row says what "
         "is missing; the tested variants of one preset are one Holm family, each decided at its Holm-adjusted "
-        "p. The single last evaluation is a sensitivity reading, on its own p. Trials: variant + base.")
+        "p. The single last evaluation is a sensitivity reading, on its own p. Trials: variant + base. These "
+        "comparisons are exploratory: a variant declares no planned n, so each regeneration at a new count is "
+        "another look, and only the claims table's rows (judged once, at their planned n) are verdicts "
+        "(docs/verdicts.md, One look per row).")
 
 
 def columns(settings: ClaimSettings) -> list[str]:
