@@ -75,6 +75,8 @@ def test_compare_arms_reads_direction_and_equivalence() -> None:
 def test_planned_n_and_intervals_match_textbook_values() -> None:
     assert planned_n(1.0, 1.0, 1.0) == 17  # d = 1: 17 per arm for 80% at alpha 0.05 (noncentral t)
     assert planned_n(0.0, 1.0, 1.0) is None
+    # a huge effect still needs the n at which the p can reach the level: 6 + 6 at Holm's 0.05 / 16
+    assert planned_n(100.0, 1.0, 1.0) == 5 and planned_n(100.0, 1.0, 1.0, alpha=0.05 / 16) == 6
     low, high = t_interval([1.0, 2.0, 3.0])
     assert (low, high) == pytest.approx((2 - 4.302653 / math.sqrt(3), 2 + 4.302653 / math.sqrt(3)))
     assert least_trials(0.95) == 6 and median_interval([1.0, 2.0, 3.0], 0.95) is None

@@ -25,6 +25,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import stats
 
+from plls_bench.report.evidence.looks import least_rejecting_n
+
 ALPHA = 0.05      # two-sided level of every test (Colas et al. 2018)
 MIN_N = 5         # fewest trials per arm a comparison is judged on
 POWER = 0.8       # the power the planner asks for
@@ -172,12 +174,13 @@ def welch_power(effect: float, sd_a: float, sd_b: float, n: int, alpha: float = 
 
 def planned_n(effect: float, sd_a: float, sd_b: float, *, power: float = POWER,
               alpha: float = ALPHA, min_n: int = MIN_N) -> int | None:
-    """Fewest trials per arm (at least ``min_n``) at which the protocol's Welch test reaches
+    """Fewest trials per arm (at least ``min_n``, and at least the n at which the protocol's p can
+    reach ``alpha`` at all: its permutation floor) at which the protocol's Welch test reaches
     ``power`` for a true difference ``effect`` with SDs ``sd_a``, ``sd_b``; None when there is
     no difference to find, or when it would take more than MAX_PLANNED_N."""
     if not effect or not math.isfinite(effect):
         return None
-    for n in range(max(min_n, 2), MAX_PLANNED_N + 1):
+    for n in range(max(min_n, 2, least_rejecting_n(alpha)), MAX_PLANNED_N + 1):
         if welch_power(effect, sd_a, sd_b, n, alpha) >= power:
             return n
     return None
