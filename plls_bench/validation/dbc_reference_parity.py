@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
-import subprocess
 import sys
 import types
 from collections.abc import Callable, Iterable, Iterator
@@ -51,6 +50,7 @@ from plls_bench.core.seeding import seed_everything
 from plls_bench.repr.pixel_trunk import conv_stack
 from plls_bench.repr.store import Representations
 from plls_bench.train.dbc import make_envs
+from plls_bench.validation.parity_report import markdown, reference_commit
 from plls_bench.validation.precision import machine
 from plls_bench.validation.precision_runs import Sizes, dbc_config, fill_replay, random_steps
 
@@ -68,12 +68,13 @@ class ReferenceAgent:
     preset: str   # the suite's experiment preset; both sides take its algo.dbc settings
     title: str    # what the report calls it
     report: str   # file stem of the report under --out
+    bisim: bool   # trains the bisimulation, transition and reward losses (BisimAgent), or the critic alone
 
 
 AGENTS = {
-    "bisim": ReferenceAgent("bisim_agent", "BisimAgent", "cheetah_dbc", "DBC", "dbc_reference_parity"),
+    "bisim": ReferenceAgent("bisim_agent", "BisimAgent", "cheetah_dbc", "DBC", "dbc_reference_parity", True),
     "baseline": ReferenceAgent("baseline_agent", "BaselineAgent", "cheetah_sac_pixel", "Pixel SAC",
-                               "sac_pixel_reference_parity"),
+                               "sac_pixel_reference_parity", False),
 }
 
 
@@ -113,9 +114,10 @@ def reference_side(agent_class: type, cfg: Config, obs_shape: tuple[int, ...], a
     dbc = cfg.algo.dbc
     assert dbc is not None
     transition = dbc.transition_model if dbc.transition_model == "probabilistic" else ""
-    own = {"bisim_coef": dbc.bisim_coef} if dbc.encoder == "bisim" else {"transition_model_type": transition}
+    bisim = dbc.encoder == "bisim"  # the preset's config decides both sides (main checks the agent agrees)
+    own = {"bisim_coef": dbc.bisim_coef} if bisim else {"transition_model_type": transition}
     agent = agent_class(
-        obs_shape, (action_dim,), "cpu", *([transition] if dbc.encoder == "bisim" else []),
+        obs_shape, (action_dim,), "cpu", *([transition] if bisim else []),
         hidden_dim=dbc.hidden_dim, discount=dbc.discount, init_temperature=dbc.init_temperature,
         alpha_lr=dbc.alpha_lr, alpha_beta=dbc.alpha_beta, actor_lr=dbc.actor_lr, actor_beta=dbc.actor_beta,
         actor_log_std_min=dbc.actor_log_std_min, actor_log_std_max=dbc.actor_log_std_max,
@@ -255,37 +257,6 @@ def verdict(rows: list[dict[str, Any]]) -> str:
     return f"different updates: in float64 some parameter differs by more than {SAME_UPDATE:g} ({seen})"
 
 
-def markdown(report: dict[str, Any]) -> str:
-    m, agent = report["machine"], AGENTS[report.get("agent", "bisim")]
-    bisim = agent.module == "bisim_agent"
-    files = ", ".join(f"`{f}`" for f in (f"agent/{agent.module}.py", "sac_ae.py", "encoder.py", "transition_model.py"))
-    lines = [f"# {agent.title}: the suite's update beside the reference's", "",
-             f"Command: `{report['command']}`  ",
-             f"Reference: facebookresearch/deep_bisim4control at `{report['reference_commit']}`, imported from its "
-             f"checkout ({files})  ",
-             f"Machine: {m['cpu']}, {m['cores']} cores, torch {m['torch']}; load average {m['load']}.  ",
-             f"Data: {report['steps']} uniform-random agent steps of `{agent.preset}` (pixels, budget=quick), "
-             f"minibatches of {report['batch']}; updates at agent steps 1..{report['updates']} (actor, temperature "
-             "and targets on even steps). Gaussian noise zero"
-             + (" and one bisimulation pairing" if bisim else "") + " in both: the two codes "
-             "draw them in different calls (`plls_bench/validation/dbc_reference_parity.py` says why and how to read "
-             "the tables).",
-             "", f"**Verdict:** {report['verdict']}", ""]
-    for name, rows in report["dtypes"].items():
-        networks = list(rows[0]["max_difference"])
-        lines += [f"## {name}", "", "| update | latent spread, suite | latent spread, reference | "
-                  + " | ".join(f"max diff {n}" for n in networks) + " |", "|---" * (3 + len(networks)) + "|"]
-        lines += [f"| {r['update']} | {r['suite_spread']:.4g} | {r['reference_spread']:.4g} | "
-                  + " | ".join(f"{r['max_difference'][n]:.2g}" for n in networks) + " |" for r in rows]
-        lines.append("")
-    return "\n".join(lines)
-
-
-def reference_commit(path: Path) -> str:
-    done = subprocess.run(["git", "-C", str(path), "rev-parse", "HEAD"], capture_output=True, text=True)
-    return done.stdout.strip() if done.returncode == 0 else "unknown (not a git checkout)"
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--reference", type=Path, required=True, help="a facebookresearch/deep_bisim4control checkout")
@@ -299,6 +270,10 @@ def main(argv: list[str] | None = None) -> int:
     agent_class = import_reference(args.reference.resolve(), agent)  # a bad path fails before any env is built
     torch.set_num_threads(1)
     cfg = dbc_config("fp32", Sizes(), agent.preset)
+    if (cfg.algo.dbc.encoder == "bisim") != agent.bisim:
+        trains = "trains" if agent.bisim else "has no"
+        raise SystemExit(f"--agent {args.agent}: preset {agent.preset} has algo.dbc.encoder="
+                         f"{cfg.algo.dbc.encoder}, but {agent.name} {trains} bisimulation")
     batches, heldout = replay_batches(cfg, args.steps, args.updates)
     dtypes = {name: compare(agent_class, cfg, batches, heldout, dtype) for name, dtype in DTYPES.items()}
     same = same_update(dtypes["float64"])
@@ -307,10 +282,10 @@ def main(argv: list[str] | None = None) -> int:
               "updates": args.updates, "batch": cfg.algo.dbc.batch_size, "agent": args.agent, "same_update": same,
               "verdict": verdict(dtypes["float64"]),
               "dtypes": dtypes}
-    print(markdown(report))
+    print(markdown(report, agent))
     if args.out is not None:
         atomic_write_json(args.out / f"{agent.report}.json", report)
-        atomic_write_bytes(args.out / f"{agent.report}.md", (markdown(report) + "\n").encode())
+        atomic_write_bytes(args.out / f"{agent.report}.md", (markdown(report, agent) + "\n").encode())
     return 0 if same else 1
 
 
