@@ -9,6 +9,7 @@ from collections import Counter
 from pathlib import Path
 
 from plls_bench.core.atomic_files import atomic_write_bytes
+from plls_bench.report.evidence.verdicts import INCONCLUSIVE, INTERIM, NOT_REPRODUCED, REPRODUCED
 from plls_bench.report.profile_costs import END as PROFILES_END
 from plls_bench.report.profile_costs import START as PROFILES_START
 from plls_bench.report.profile_costs import build_profiles
@@ -30,7 +31,7 @@ HEADLINE_CLAIMS = (
     ("cheetah-run", "Suite DBC reaches the published pixel range on cheetah-run at 100k env steps (final return)"),
 )
 FIGURE = ("Fig. 18: CarRacing, PL-LS + PPO against PPO", "results/figures/fig18.png")
-VERDICT_ORDER = ("reproduced", "not reproduced", "inconclusive")  # others follow in the table's order
+VERDICT_ORDER = (REPRODUCED, NOT_REPRODUCED, INCONCLUSIVE, INTERIM)  # others follow in the table's order
 
 
 def _cell(text: str) -> str:
