@@ -35,7 +35,7 @@ from plls_bench.report.evidence.looks import (
     least_rejecting_n,
     look,
 )
-from plls_bench.report.evidence.protocol import A_BETTER, ALPHA, MIN_N, decisions
+from plls_bench.report.evidence.protocol import A_BETTER, ALPHA, MIN_N, decisions, holm
 
 SIMULATIONS = 2000
 MOST = 10  # the most trials per arm a campaign reaches (the paper's CarRacing count)
@@ -104,3 +104,16 @@ def test_a_plan_that_cannot_reject_is_refused_naming_its_key(tmp_path: Path) -> 
     (tmp_path / "claims.yaml").write_text(text[:at] + "planned_n: 5" + text[at + len("planned_n: 6"):])
     with pytest.raises(ValueError, match=re.escape(f"comparisons.{row}.planned_n: 5 trials per arm cannot decide")):
         load_settings(tmp_path, None)
+
+
+def test_no_holm_adjusted_p_rises_when_another_row_s_p_falls() -> None:
+    """Holm over the fixed family (rows not yet judged at p = 1): a row reaching its planned n can
+    only lower the others' adjusted p, so no verdict weakens as trials arrive (docs/verdicts.md)."""
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        p = np.where(rng.random(16) < 0.5, 1.0, rng.random(16) ** 3)  # half the family not yet judged
+        row = int(rng.integers(16))
+        lowered = p.copy()
+        lowered[row] = p[row] * rng.random()
+        others = np.arange(16) != row
+        assert (holm(lowered)[others] <= holm(p)[others] + 1e-15).all()
