@@ -38,12 +38,12 @@ def test_the_ne_sweep_is_declared_once_with_the_presets_own_value() -> None:
 
 def test_plan_gives_each_value_its_variant_and_its_own_va(tmp_path: Path) -> None:
     plans = plan_sweep(load_sweep("ne"), "quick", str(tmp_path), rates={})
-    assert [p.overrides for p in plans] == [(), *[(f"repr.action.latent_dim={v}", "budget.trials=5")
-                                                  for v in (3, 8, 16, 64)]]  # conf/sweep/ne.yaml: trials 5
+    assert [p.overrides for p in plans] == [(), *[(f"repr.action.latent_dim={v}", "budget.trials=10")
+                                                  for v in (3, 8, 16, 64)]]  # conf/sweep/ne.yaml: trials 10
     dirs = [p.trials[0].run_dir.relative_to(tmp_path).parent.as_posix() for p in plans]
     assert dirs[0] == f"{PRESET}/env.backend=envpool"  # quick runs CarRacing on envpool
     assert dirs[2] == f"{PRESET}/repr.action.latent_dim=8,env.backend=envpool"
-    assert [len(p.trials) for p in plans] == [10, 5, 5, 5, 5], "the preset's own 10, the sweep's 5 per value"
+    assert [len(p.trials) for p in plans] == [10] * 5, "the preset's own 10, the sweep's 10 per value (its row's plan)"
     # each value trains its own V_a: five distinct rate-free workloads name repr_action once per value
     keys = {f"{p.label}": p.missing_rates for p in plans}
     assert all("repr_action/carracing" in missing for missing in keys.values()), keys
