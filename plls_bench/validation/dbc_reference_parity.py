@@ -50,25 +50,13 @@ from plls_bench.core.seeding import seed_everything
 from plls_bench.repr.pixel_trunk import conv_stack
 from plls_bench.repr.store import Representations
 from plls_bench.train.dbc import make_envs
-from plls_bench.validation.parity_report import markdown, reference_commit
+from plls_bench.validation.parity_report import ReferenceAgent, markdown, reference_commit
 from plls_bench.validation.precision import machine
 from plls_bench.validation.precision_runs import Sizes, dbc_config, fill_replay, random_steps
 
 SEED = 20261126
 SAME_UPDATE = 1e-9  # float64: a few updates' rounding is ~1e-13; any algorithmic difference is ~1e-4 or more
 DTYPES = {"float64": torch.float64, "float32": torch.float32}
-
-
-@dataclass(frozen=True)
-class ReferenceAgent:
-    """One agent of the reference and the suite preset that reimplements it."""
-
-    module: str   # under the checkout's agent/
-    name: str     # its class
-    preset: str   # the suite's experiment preset; both sides take its algo.dbc settings
-    title: str    # what the report calls it
-    report: str   # file stem of the report under --out
-    bisim: bool   # trains the bisimulation, transition and reward losses (BisimAgent), or the critic alone
 
 
 AGENTS = {

@@ -1,13 +1,23 @@
-"""The report of :mod:`plls_bench.validation.dbc_reference_parity`: its markdown and the reference
-checkout's commit."""
+"""The report of :mod:`plls_bench.validation.dbc_reference_parity`: the reference agents it can
+stand beside a suite preset, its markdown and the reference checkout's commit."""
 from __future__ import annotations
 
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from plls_bench.validation.dbc_reference_parity import ReferenceAgent
+
+@dataclass(frozen=True)
+class ReferenceAgent:
+    """One agent of the reference and the suite preset that reimplements it."""
+
+    module: str   # under the checkout's agent/
+    name: str     # its class
+    preset: str   # the suite's experiment preset; both sides take its algo.dbc settings
+    title: str    # what the report calls it
+    report: str   # file stem of the report under --out
+    bisim: bool   # trains the bisimulation, transition and reward losses (BisimAgent), or the critic alone
 
 
 def markdown(report: dict[str, Any], agent: ReferenceAgent) -> str:
