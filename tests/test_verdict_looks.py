@@ -10,7 +10,7 @@ Simulated identical arms run through the protocol's own decision function
 - the protocol's looks (:func:`~plls_bench.report.evidence.looks.look`: interim below the planned n)
   keep it within alpha / 2 plus Monte Carlo error;
 - an arm holding more trials than a row planned (another row asked for them) enters with the seeds
-  its plan names, 0 to planned n - 1 (:func:`~plls_bench.report.evidence.looks.first_trials`), so the
+  its plan names, 0 to planned n - 1 (:func:`~plls_bench.report.evidence.looks.planned_seeds`), so the
   counts after the plan are one look, not several.
 
 Making every count from the minimum a final look, or letting trials past the plan enter, fails one
@@ -31,9 +31,9 @@ from plls_bench.report.evidence.looks import (
     FINAL_LOOK,
     INTERIM_LOOK,
     TOO_FEW_LOOK,
-    first_trials,
     least_rejecting_n,
     look,
+    planned_seeds,
 )
 from plls_bench.report.evidence.protocol import A_BETTER, ALPHA, MIN_N, decisions, holm
 
@@ -60,10 +60,11 @@ def _false_reproduced(arms: dict[str, np.ndarray], planned: int) -> tuple[float,
     protocol = np.zeros(SIMULATIONS, dtype=bool)
     for n in range(MIN_N, MOST + 1):
         finished = np.arange(MOST) < n  # the trials finished when the table is regenerated at n per arm
-        kept = first_trials(finished, np.arange(MOST), planned)
-        outcome, _ = decisions(arms["a"][:, kept], arms["b"][:, kept])
-        rejects = outcome == A_BETTER
-        every |= decisions(arms["a"][:, finished], arms["b"][:, finished])[0] == A_BETTER
+        kept = planned_seeds(finished, np.arange(MOST), planned)
+        rejects = decisions(arms["a"][:, kept], arms["b"][:, kept])[0] == A_BETTER
+        # below the plan the protocol keeps every finished trial, so that test is reading every count's
+        every |= rejects if (kept == finished).all() else (
+            decisions(arms["a"][:, finished], arms["b"][:, finished])[0] == A_BETTER)
         if look(int(kept.sum()), int(kept.sum()), planned, MIN_N) == FINAL_LOOK:
             protocol |= rejects
     return float(every.mean()), float(protocol.mean())
@@ -85,13 +86,13 @@ def test_a_look_is_too_few_then_interim_then_final() -> None:
     assert look(5, 5, None, 5) == look(5, 5, 3, 5) == FINAL_LOOK  # no plan, or one below the minimum
 
 
-def test_first_trials_keeps_the_seeds_a_plan_names() -> None:
+def test_planned_seeds_keeps_the_seeds_a_plan_names() -> None:
     finished = np.array([True, False, True, True, True])  # seed 1 still running
     seeds = np.arange(5)
-    assert first_trials(finished, seeds, 3).tolist() == [True, False, True, False, False]  # seed 3 never stands in
-    assert first_trials(finished, seeds, None).tolist() == finished.tolist()
-    assert first_trials(finished, seeds, 9).tolist() == finished.tolist()
-    assert first_trials(finished, np.array([0, 1, 2, 3, 7]), 6).tolist() == [True, False, True, True, False]
+    assert planned_seeds(finished, seeds, 3).tolist() == [True, False, True, False, False]  # seed 3 never stands in
+    assert planned_seeds(finished, seeds, None).tolist() == finished.tolist()
+    assert planned_seeds(finished, seeds, 9).tolist() == finished.tolist()
+    assert planned_seeds(finished, np.array([0, 1, 2, 3, 7]), 6).tolist() == [True, False, True, True, False]
 
 
 def test_a_plan_that_cannot_reject_is_refused_naming_its_key(tmp_path: Path) -> None:

@@ -173,20 +173,19 @@ def _check_chains(rows: list[dict[str, str]], paper_dir: Path) -> None:
             at = requires[at]
 
 
-def holm_judged(claims: list[dict[str, str]], judged: dict[str, Judged], settings: ClaimSettings) -> dict[str, Judged]:
+def holm_judged(judged: dict[str, Judged], settings: ClaimSettings) -> dict[str, Judged]:
     """The primary comparison rows (claims.yaml, ``primary``) judged at their planned n, read again at
     their Holm-corrected p; every other row as judged. The family is every primary row claims.yaml
     declares, fixed before the data: a row not yet judged enters at p = 1, so no row's verdict
     weakens when another row's trials arrive (Holm's adjusted p never rises as a raw p falls)."""
-    family = [c["claim"] for c in claims
-              if c["claim"] in settings.comparisons and settings.comparisons[c["claim"]].primary]
+    family = [name for name, plan in settings.comparisons.items() if plan.primary]  # settings.family_size rows
     tested = [name for name in family if _judged_at_planned_n(judged[name])]
     adjusted = dict(zip(family, holm([judged[name][0].comparison.p if name in tested else 1.0 for name in family])))
     out = dict(judged)
     for name in tested:
         est = judged[name][0]
         est = replace(est, comparison=adjust(est.comparison, float(adjusted[name])))
-        out[name] = (est, *comparison_verdict(name, est, settings, len(family)), est.budget)
+        out[name] = (est, *comparison_verdict(name, est, settings, settings.family_size), est.budget)
     return out
 
 
@@ -223,7 +222,7 @@ def claims_table(runs: Runs, entry: Entry, opts: Options) -> Output:
     rows, records = [], []
     claims = read_claims(opts.paper_dir)
     settings = load_settings(opts.paper_dir, [c["claim"] for c in claims])
-    judged = holm_judged(claims, {claim["claim"]: judge(runs, claim, settings) for claim in claims}, settings)
+    judged = holm_judged({claim["claim"]: judge(runs, claim, settings) for claim in claims}, settings)
     final = gate_all(claims, judged)
     for claim in claims:
         est, _, _, budget = judged[claim["claim"]]

@@ -26,9 +26,9 @@ CAPTION = (
     "at alpha / m: the same at the "
     "first step of Holm's correction over the m primary comparisons (a bound: later steps need less). "
     "Observed effects from 3 trials are themselves noisy, so these are orders of magnitude. Planned n: the "
-    "trials per arm the row is judged at, once (claims.yaml's planned_n, raised where the test could not "
-    "reject at that n: a primary row Holm-corrected over m needs 2 / C(2n, n) <= alpha / m; docs/verdicts.md, "
-    "One look per row). Cost per trial: "
+    "trials per arm the row is judged at, once (claims.yaml's planned_n; a plan below the n at which the "
+    "test can reject is refused: a primary row Holm-corrected over m needs 2 / C(2n, n) <= alpha / m; "
+    "docs/verdicts.md, One look per row). Cost per trial: "
     "the dry run's estimate of one more trial of each arm (python -m plls_bench.reproduce --dry-run), "
     "from the rates in bench/throughput.json measured on the reference CPU.")
 

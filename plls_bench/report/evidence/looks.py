@@ -23,11 +23,11 @@ TOO_FEW_LOOK, INTERIM_LOOK, FINAL_LOOK = "too few", "interim", "final"
 def look(n_a: int, n_b: int, planned_n: int | None, min_n: int) -> str:
     """Which look ``n_a`` + ``n_b`` finished trials give a row: :data:`TOO_FEW_LOOK` below ``min_n``
     in an arm, :data:`INTERIM_LOOK` below the row's ``planned_n`` (None: no plan, so the minimum
-    is the plan), :data:`FINAL_LOOK` at or past it."""
-    target = max(planned_n or 0, min_n)
+    is the plan), :data:`FINAL_LOOK` at or past it. claims.yaml never plans below ``min_n``
+    (``claim_settings`` refuses it)."""
     if min(n_a, n_b) < min_n:
         return TOO_FEW_LOOK
-    return INTERIM_LOOK if min(n_a, n_b) < target else FINAL_LOOK
+    return INTERIM_LOOK if min(n_a, n_b) < (planned_n or min_n) else FINAL_LOOK
 
 
 def least_rejecting_n(level: float) -> int:
@@ -41,7 +41,7 @@ def least_rejecting_n(level: float) -> int:
     return n
 
 
-def first_trials(mask: np.ndarray, seeds: np.ndarray, keep: int | None) -> np.ndarray:
+def planned_seeds(mask: np.ndarray, seeds: np.ndarray, keep: int | None) -> np.ndarray:
     """``mask`` ``(n,)`` (the trials that may enter, with seeds ``seeds`` ``(n,)``) cut to seeds 0 to
     ``keep`` - 1, the trials a plan of ``keep`` per arm names; None keeps all. A plan's trials are
     named by seed, not by the order they finish in, so a later seed finishing first never enters in

@@ -14,7 +14,7 @@ from functools import reduce
 import numpy as np
 
 from plls_bench.report.evidence.load import MIN_TRIALS, Runs
-from plls_bench.report.evidence.looks import first_trials
+from plls_bench.report.evidence.looks import planned_seeds
 from plls_bench.report.evidence.returns import Curves
 from plls_bench.report.evidence.stats import complete
 from plls_bench.report.evidence.table_formats import fmt
@@ -59,7 +59,7 @@ def matched(*arms: Curves, runs: Runs | None = None, first: int | None = None) -
     """Every arm's finished trials (of seeds 0 to ``first`` - 1: a row's planned n,
     :mod:`~plls_bench.report.evidence.looks`) cut to the evaluation x values all of them reach; a
     finished trial ending before its arm's last evaluation is a gap in ``runs`` (it pulls the x back)."""
-    masks = [first_trials(c.finished_seeds(), np.array(c.seeds), first) for c in arms]
+    masks = [planned_seeds(c.finished_seeds(), np.array(c.seeds), first) for c in arms]
     for arm, mask in zip(arms, masks):
         if not mask.any():
             raise NotJudged(f"no finished trials of {arm.experiment.name}")
