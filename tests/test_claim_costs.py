@@ -9,7 +9,10 @@ from pathlib import Path
 import pytest
 
 from plls_bench.pipeline.plan import plan_profile
+from plls_bench.report.claims.claims_table import read_claims
 from plls_bench.report.claims.costs import MoreTrials, more_trials, trial_seconds
+from plls_bench.report.collect import PAPER_DIR
+from plls_bench.report.evidence.claim_settings import load_settings
 from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.rundirs.run_dir import config_hash
 from plls_bench.train.schedule import Schedule
@@ -53,3 +56,26 @@ def test_a_trial_resuming_near_its_end_does_not_make_more_trials_look_cheap(runs
     plan = plan_profile("quick", str(runs_dir), only=["mountaincar_ppo"], count_records=False)[0]
     assert [t.resumes_at for t in plan.trials][1:] == [iterations * 9 // 10] * (cfg.budget.trials - 1)
     assert fresh and trial_seconds("mountaincar_ppo", "quick", str(runs_dir)) == pytest.approx(fresh)
+
+
+# Presets the quick profile runs to the plan of every comparison row they are an arm of: the CarRacing
+# latent arms (about 1 CPU-hour a trial) and the arms of rows that the presets exist to decide (Fig. 18
+# under gSDE, Fig. 21). The rest stop short by cost, and their rows say what the plan would cost:
+# the pixel CNN arms (carracing_ppo, carracing_ppo_va, about 20 CPU-hours a trial) and MountainCar past
+# the paper's 7 trials (docs/verdicts.md, "One look per row").
+RUN_TO_PLAN = ("carracing_plls_ppo", "carracing_ppo_vs", "carracing_plls_ppo_gsde", "carracing_ppo_gsde",
+               "cheetah_dbc", "cheetah_plls_dbc")
+
+
+@pytest.mark.parametrize("preset", RUN_TO_PLAN)
+def test_the_quick_profile_runs_an_arm_to_its_rows_plans(tmp_path: Path, preset: str) -> None:
+    """``reproduce --profile quick`` runs seeds 0 to ``budget.trials`` - 1: fewer than a row's plan and
+    the row could only ever be an interim look; more, and trials run that no row reads."""
+    rows = read_claims(PAPER_DIR)
+    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
+    arms = {r["claim"]: {r["experiment"], r["baseline"] or r["experiment"]} for r in rows}
+    # a row with an arm that stops short by cost is not decided by more trials of this one
+    plans = [settings.planned(name) for name, pair in arms.items()
+             if preset in pair and pair <= set(RUN_TO_PLAN) and settings.planned(name)]
+    assert plans, f"{preset} is an arm of no planned comparison row between presets run to plan"
+    assert compose_preset(preset, tmp_path, "budget=quick").budget.trials == max(plans)

@@ -43,7 +43,7 @@ def test_plan_gives_each_value_its_variant_and_its_own_va(tmp_path: Path) -> Non
     dirs = [p.trials[0].run_dir.relative_to(tmp_path).parent.as_posix() for p in plans]
     assert dirs[0] == f"{PRESET}/env.backend=envpool"  # quick runs CarRacing on envpool
     assert dirs[2] == f"{PRESET}/repr.action.latent_dim=8,env.backend=envpool"
-    assert [len(p.trials) for p in plans] == [10] * 5, "the preset's own 10, the sweep's 10 per value (its row's plan)"
+    assert [len(p.trials) for p in plans] == [11] + [10] * 4, "the preset's own 11; 10 per other value (the row's plan)"
     # each value trains its own V_a: five distinct rate-free workloads name repr_action once per value
     keys = {f"{p.label}": p.missing_rates for p in plans}
     assert all("repr_action/carracing" in missing for missing in keys.values()), keys
