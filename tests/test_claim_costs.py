@@ -9,10 +9,12 @@ from pathlib import Path
 import pytest
 
 from plls_bench.pipeline.plan import plan_profile
+from plls_bench.report.claims import power
 from plls_bench.report.claims.claims_table import read_claims
 from plls_bench.report.claims.costs import MoreTrials, more_trials, trial_seconds
 from plls_bench.report.collect import PAPER_DIR
 from plls_bench.report.evidence.claim_settings import load_settings
+from plls_bench.report.evidence.load import Runs
 from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.rundirs.run_dir import config_hash
 from plls_bench.train.schedule import Schedule
@@ -79,3 +81,16 @@ def test_the_quick_profile_runs_an_arm_to_its_rows_plans(tmp_path: Path, preset:
              if preset in pair and pair <= set(RUN_TO_PLAN) and settings.planned(name)]
     assert plans, f"{preset} is an arm of no planned comparison row between presets run to plan"
     assert compose_preset(preset, tmp_path, "budget=quick").budget.trials == max(plans)
+
+
+def test_a_row_without_runs_prices_its_whole_plan(tmp_path: Path) -> None:
+    """The power table costs a row no arm has run yet at the least budget it is judged at."""
+    rows = read_claims(PAPER_DIR)
+    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
+    gsde = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
+    claim = next(r for r in rows if r["claim"] == gsde)
+    _, record = power._row(Runs(tmp_path / "runs", tmp_path / "records"), claim, settings, settings.family_size)
+    per_trial = [trial_seconds(arm, claim["min_budget"]) for arm in (claim["experiment"], claim["baseline"])]
+    assert None not in per_trial and "n_a" not in record
+    assert record["cost_per_trial_s"] == pytest.approx(sum(per_trial))
+    assert record["cost_to_planned_s"] == pytest.approx(settings.planned(claim["claim"]) * sum(per_trial))

@@ -52,7 +52,8 @@ def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int
                                alpha=settings.alpha / max(family, 1), min_n=settings.min_n) if need else None
         record.update(n_a=comp.n_a, n_b=comp.n_b, mean_a=comp.mean_a, sd_a=comp.sd_a, mean_b=comp.mean_b,
                       sd_b=comp.sd_b, effect=comp.effect, n_power=need, n_power_holm=holm_first)
-    budget = runs.experiment(claim["experiment"]).budget
+    # a row with no runs yet is costed at the least budget it is judged at, so its whole plan is priced
+    budget = runs.experiment(claim["experiment"]).budget or claim["min_budget"] or None
     more = more_trials(claim["experiment"], claim["baseline"], budget,
                        (record.get("n_a", 0), record.get("n_b", 0)), record["planned_n"])
     record["cost_per_trial_s"] = None if None in more.per_trial_s else sum(more.per_trial_s)
