@@ -11,6 +11,7 @@ import yaml
 
 from plls_bench.config import EnvConfig
 from plls_bench.core.atomic_files import read_json
+from plls_bench.pipeline.plan import plan_profile
 from plls_bench.rundirs.composition import CONF_DIR, compose
 from plls_bench.rundirs.run_dir import STATUS_DONE, config_hash, stored_identity
 from tests.conftest import REPO_ROOT, compose_preset
@@ -19,11 +20,14 @@ RECORDS = REPO_ROOT / "results" / "records"
 PRESETS = ("cheetah_dbc", "cheetah_plls_dbc")
 
 
+MIX = "algo=dbc_mix"  # the variant dir its records moved to when algo=dbc became the default
+
+
 def recorded_trials() -> list[tuple[str, Path]]:
-    """The committed done records of the DBC presets' default variant, as (preset, record dir)."""
+    """The committed done records of the DBC presets' mix variant, as (preset, record dir)."""
     found = []
     for preset in PRESETS:
-        for record in sorted((RECORDS / preset / "default").glob("seed=*")):
+        for record in sorted((RECORDS / preset / MIX).glob("seed=*")):
             if (read_json(record / "status.json") or {}).get("state") == STATUS_DONE:
                 found.append((preset, record))
     return found
@@ -48,9 +52,10 @@ def test_the_mix_differs_from_the_default_in_the_action_repeat_alone(runs_dir: P
 def test_the_mix_keeps_the_hash_of_every_committed_dbc_record() -> None:
     """Each done record of cheetah_dbc / cheetah_plls_dbc composes back, with algo=dbc_mix at its own budget
     and seed, to the identity it was recorded with (its stored config re-hashed under today's rules, which
-    is what counts a record done); under the new default it no longer does (it is rerun)."""
+    is what counts a record done); under the new default it no longer does (it is rerun). Its dir is the
+    one ``reproduce --override algo=dbc_mix`` plans, so that variant counts it done."""
     trials = recorded_trials()
-    assert trials, f"no done records under {RECORDS}/cheetah_dbc/default"
+    assert trials, f"no done records under {RECORDS}/cheetah_dbc/{MIX}"
     for preset, record in trials:
         written = read_json(record / "config.json")
         budget, seed = written["config"]["budget"]["name"], written["config"]["seed"]
@@ -58,6 +63,15 @@ def test_the_mix_keeps_the_hash_of_every_committed_dbc_record() -> None:
         identity = stored_identity(record)
         assert config_hash(compose([*base, "algo=dbc_mix"])) == identity, record
         assert config_hash(compose(base)) != identity, record
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+def test_reproduce_counts_the_mix_records_done_for_their_variant_only(preset: str) -> None:
+    recorded = {int(record.name.split("=")[1]) for p, record in recorded_trials() if p == preset}
+    plans = plan_profile("quick", str(RECORDS.parent / "runs"), only=[preset], rates={}, variants=[(MIX,)])
+    own, mix = (next(p for p in plans if p.overrides == overrides) for overrides in ((), (MIX,)))
+    assert {t.seed for t in mix.trials if t.recorded} == recorded
+    assert not any(t.recorded for t in own.trials), "the default (algo=dbc) has none of its own yet"
 
 
 def test_env_per_algo_layers_set_only_env_keys() -> None:

@@ -39,6 +39,7 @@ from plls_bench.report.evidence.matched import NotJudged
 from plls_bench.report.evidence.protocol import adjust, holm
 from plls_bench.report.evidence.returns import DEFAULT_X_AXIS
 from plls_bench.report.evidence.table_formats import NA, Table, fmt, read_paper
+from plls_bench.report.evidence.variant_arms import found_variants
 from plls_bench.report.evidence.verdicts import (
     INCONCLUSIVE,
     INTERIM,
@@ -109,12 +110,19 @@ def _run_budget(runs: Runs, name: str, kind: str) -> str | None:
     return budget
 
 
+VARIANTS_TABLE = "results/tables/variants.md"
+
+
 def _no_runs_reason(runs: Runs, name: str) -> str:
     """Why ``name`` has no trial to judge: none ran, or its trials are unfinished partial records
     (named with the iteration each stopped at, so the table shows how far the evidence has got)."""
     partial = runs.partial_trials(name)
     if not partial:
-        return f"no runs of {name}"
+        # trials of another config (a former default kept as a variant) are named, never judged here
+        elsewhere = [f"{v}: {len(runs.experiment(name, v).trials)}" for v in found_variants(runs).get(name, [])
+                     if runs.experiment(name, v).trials]
+        return f"no runs of {name}" + (f" (finished trials of its variants, in {VARIANTS_TABLE}: "
+                                       f"{', '.join(elsewhere)})" if elsewhere else "")
     where = [f"seed {t.seed}" + ("" if (at := partial_iteration(t.path)) is None else f" at iteration {at}")
              for t in partial]
     return f"no finished runs of {name}; unfinished, in partial records: {', '.join(where)}"
