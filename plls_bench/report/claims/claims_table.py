@@ -119,8 +119,8 @@ def _no_runs_reason(runs: Runs, name: str) -> str:
     partial = runs.partial_trials(name)
     if not partial:
         # trials of another config (a former default kept as a variant) are named, never judged here
-        elsewhere = [f"{v}: {len(runs.experiment(name, v).trials)}" for v in found_variants(runs).get(name, [])
-                     if runs.experiment(name, v).trials]
+        counts = {v: len(runs.experiment(name, v).trials) for v in found_variants(runs).get(name, [])}
+        elsewhere = [f"{v}: {n}" for v, n in counts.items() if n]
         return f"no runs of {name}" + (f" (finished trials of its variants, in {VARIANTS_TABLE}: "
                                        f"{', '.join(elsewhere)})" if elsewhere else "")
     where = [f"seed {t.seed}" + ("" if (at := partial_iteration(t.path)) is None else f" at iteration {at}")
