@@ -70,9 +70,9 @@ RUN_TO_PLAN = ("carracing_plls_ppo", "carracing_ppo_vs", "carracing_plls_ppo_gsd
 
 
 @pytest.mark.parametrize("preset", RUN_TO_PLAN)
-def test_the_quick_profile_runs_an_arm_to_its_rows_plans(tmp_path: Path, preset: str) -> None:
-    """``reproduce --profile quick`` runs seeds 0 to ``budget.trials`` - 1: fewer than a row's plan and
-    the row could only ever be an interim look; more, and trials run that no row reads."""
+def test_the_quick_and_paper_profiles_run_an_arm_to_its_rows_plans(tmp_path: Path, preset: str) -> None:
+    """``reproduce --profile quick|paper`` runs seeds 0 to ``budget.trials`` - 1: fewer than a row's plan
+    and the row could only ever be an interim look; more at quick, and trials run that no row reads."""
     rows = read_claims(PAPER_DIR)
     settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
     arms = {r["claim"]: {r["experiment"], r["baseline"] or r["experiment"]} for r in rows}
@@ -81,6 +81,8 @@ def test_the_quick_profile_runs_an_arm_to_its_rows_plans(tmp_path: Path, preset:
              if preset in pair and pair <= set(RUN_TO_PLAN) and settings.planned(name)]
     assert plans, f"{preset} is an arm of no planned comparison row between presets run to plan"
     assert compose_preset(preset, tmp_path, "budget=quick").budget.trials == max(plans)
+    # the paper profile keeps the paper's count where it is larger, never one that leaves a row interim
+    assert compose_preset(preset, tmp_path, "budget=paper").budget.trials >= max(plans)
 
 
 def test_a_row_without_runs_prices_its_whole_plan(tmp_path: Path) -> None:

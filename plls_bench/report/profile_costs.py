@@ -27,7 +27,7 @@ SMOKE_ANCHOR = "docs/benchmarks.md#wall-time-of-a-whole-profile-benchprofile_tim
 JOBS = 2  # the reference machines' cores (bench/throughput.json): the README's wall estimate
 SUMMARY = {"smoke": "every preset at tiny budgets: the whole pipeline",
            "quick": "the paper's settings at reduced budgets",
-           "paper": "the paper's trial counts and budgets"}
+           "paper": "the paper's budgets and trial counts, or a claims row's planned n where larger"}
 NOTES = {"paper": "; a GPU is recommended"}
 ENV_TITLES = {"mountaincar": "MountainCar", "carracing": "CarRacing", "cheetah": "cheetah-run"}
 
