@@ -17,11 +17,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-from plls_bench.config import BUDGET_NAMES, ENV_NAMES, PRECISIONS, ConfigError, FilmstripConfig
+from plls_bench.config import BUDGET_NAMES, PRECISIONS, ConfigError
 from plls_bench.config.checks import check_writable_dir
-from plls_bench.config.studies_film import filmstrip_hash
-from plls_bench.core.atomic_files import read_json
 from plls_bench.core.signals import TERMINATED_EXIT_CODE, Terminated, sigterm_raises
+from plls_bench.pipeline.filming import film_policies
 from plls_bench.pipeline.launch import (
     QUEUE_ORDERS,
     deadline_outlook,
@@ -31,15 +30,12 @@ from plls_bench.pipeline.launch import (
     trial_threads,
 )
 from plls_bench.pipeline.overrides import override_variants
-from plls_bench.pipeline.plan import PresetPlan, Trial, plan_profile, plan_sweep
+from plls_bench.pipeline.plan import PresetPlan, plan_profile, plan_sweep
 from plls_bench.pipeline.plan_totals import plan_totals
 from plls_bench.pipeline.rates import THROUGHPUT_FILE, rate_machines
-from plls_bench.pipeline.runner_registry import runner_spec
 from plls_bench.pipeline.sweeps import load_sweep, sweep_names
-from plls_bench.rundirs.composition import CONF_DIR, filmstrip_config
 from plls_bench.rundirs.devices import cpu_model
-from plls_bench.rundirs.record_layout import record_path, records_dir_for
-from plls_bench.rundirs.run_dir import STATUS_DONE, Run, config_hash, variant_overrides
+from plls_bench.rundirs.record_layout import records_dir_for
 
 LAUNCHERS = ("local", "joblib", "slurm")
 # Smoke numbers check the pipeline, not the paper: the committed results/ is written only from
@@ -89,72 +85,6 @@ def format_plan(plans: list[PresetPlan], jobs: int, stop_after_min: float = 0.0,
         rows.append(f"rates measured on {', '.join(f'{cpu} ({n})' for cpu, n in machines.items())}; "
                     f"this machine: {cpu_model()}, {os.cpu_count()} cores")
     return "\n".join(rows)
-
-
-def filmed_presets() -> set[str]:
-    """Presets one of whose trials is filmed (Figs 11, 19, 22): those a filmstrip config
-    (``conf/filmstrip/<env>.yaml``) lists, for runners whose spec has a policy to film."""
-    return set(_filmstrip_presets())
-
-
-def _filmstrip_presets() -> dict[str, FilmstripConfig]:
-    """Each filmed preset's filmstrip config, from ``conf/filmstrip/<env>.yaml``'s ``presets``."""
-    strips = {env: filmstrip_config(env) for env in ENV_NAMES if (CONF_DIR / "filmstrip" / f"{env}.yaml").exists()}
-    return {preset: strip for strip in strips.values() for preset in strip.presets}
-
-
-def film_policies(plans: list[PresetPlan]) -> list[str]:
-    """Film the first done trial that holds a policy (:func:`_film_target`) of each filmed preset
-    (``budget.eval_max_steps`` caps the episode, as for its test episodes); a filmstrip already made of the same
-    run with the same settings (its done marker, :class:`plls_bench.rundirs.run_dir.RunOutput`) is not redone.
-    Returns the presets whose filmstrip failed."""
-    failed, filmed = [], _filmstrip_presets()
-    for plan in plans:
-        strip = filmed.get(plan.experiment)
-        # a variant (a sweep value) is not filmed
-        if strip is None or not plan.trials or variant_overrides(plan.overrides):
-            continue
-        if not runner_spec(plan.runner).films:  # a filmstrip config that lists a preset with no policy
-            print(f"[reproduce] {plan.experiment}: listed in conf/filmstrip/{plan.env}.yaml, but runner "
-                  f"{plan.runner} has no policy to film", flush=True)
-            failed.append(f"{plan.experiment} (filmstrip)")
-            continue
-        target = _film_target(plan)
-        if target is None:
-            print(f"[reproduce] {plan.experiment}: no filmstrip, no done trial holds a policy "
-                  f"(seed={plan.trials[0].seed} first)", flush=True)
-            continue
-        trial, run = target
-        # the strip names the hash its run dir stored (filmstrip.py), which predates a hashing rule
-        # for runs made before it; _film_target has checked that run is this config's
-        run_hash, cap = (run.read_status() or {}).get("config_hash"), trial.cfg.budget.eval_max_steps
-        if run.output("filmstrip").is_made(strip.output_hash(run_hash, STATUS_DONE, cap), legacy=_legacy_hash):
-            print(f"[reproduce] {plan.experiment}: filmstrip already made", flush=True)
-            continue
-        command = [sys.executable, "-m", "plls_bench.film", str(run.path),
-                   *(["--max-steps", str(cap)] if cap else [])]
-        if subprocess.run(command).returncode != 0:
-            failed.append(f"{plan.experiment} (filmstrip)")
-    return failed
-
-
-def _film_target(plan: PresetPlan) -> tuple[Trial, Run] | None:
-    """The lowest-seed trial that is done, in its run dir or else in its committed record (the strip
-    then joins the record), and holds a policy: a record of a run exported before records carried
-    checkpoints has none, so the next seed's is filmed."""
-    policy_files = runner_spec(plan.runner).load_policy_files
-    for trial in plan.trials:
-        run_hash = config_hash(trial.cfg)
-        for run in (Run(trial.run_dir), *([Run(record_path(trial.run_dir))] if trial.recorded else [])):
-            if run.is_done(run_hash) and (policy_files is None or policy_files()(run.path)):
-                return trial, run
-    return None
-
-
-def _legacy_hash(path: Path) -> str | None:
-    """A strip from before done markers: its identity from the filmstrip.json it ends with."""
-    meta = read_json(path / "filmstrip.json")
-    return filmstrip_hash(meta) if isinstance(meta, dict) else None
 
 
 def export_run_records(runs_dir: str) -> None:

@@ -119,22 +119,22 @@ def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: 
                                                    capsys: pytest.CaptureFixture[str]) -> None:
     """Which presets are filmed comes from conf/filmstrip; a strip made of the same done run with
     the same settings (its done marker, or an older strip's filmstrip.json) is not made again."""
-    from plls_bench import reproduce
+    from plls_bench.pipeline import filming
     from plls_bench.pipeline.plan import plan_profile
     from plls_bench.rundirs.run_dir import Run, config_hash
 
     commands: list[list[str]] = []
-    monkeypatch.setattr(reproduce.subprocess, "run",
+    monkeypatch.setattr(filming.subprocess, "run",
                         lambda cmd: commands.append(cmd) or subprocess.CompletedProcess(cmd, 0))
     plans = plan_profile("smoke", str(tmp_path / "runs"), ["mountaincar_plls_ppo", "mountaincar_ppo"], rates={})
     trial = next(p for p in plans if p.experiment == "mountaincar_plls_ppo").trials[0]
-    assert reproduce.film_policies(plans) == [] and commands == []  # not done yet; plain PPO is never filmed
+    assert filming.film_policies(plans) == [] and commands == []  # not done yet; plain PPO is never filmed
     assert "mountaincar_plls_ppo: no filmstrip, no done trial holds a policy (seed=0 first)" in capsys.readouterr().out
     run_hash = config_hash(trial.cfg)
     Run(trial.run_dir).write_status("done", config_hash=run_hash)
-    assert reproduce.film_policies(plans) == [] and commands == []  # done, but no checkpoint to film
+    assert filming.film_policies(plans) == [] and commands == []  # done, but no checkpoint to film
     _fake_checkpoint(trial.run_dir)
-    assert reproduce.film_policies(plans) == [] and len(commands) == 1 and str(trial.run_dir) in commands[0]
+    assert filming.film_policies(plans) == [] and len(commands) == 1 and str(trial.run_dir) in commands[0]
 
     strip, output = filmstrip_config("mountaincar"), Run(trial.run_dir).output("filmstrip")
     meta = {"settings": strip.settings(), "max_steps": trial.cfg.budget.eval_max_steps or None,
@@ -143,7 +143,7 @@ def test_reproduce_films_a_done_run_once_per_strip(tmp_path: Path, monkeypatch: 
     (output.path / "done.json").unlink()  # as a strip written before done markers: read from filmstrip.json
     for made in (True, False):
         capsys.readouterr()
-        assert reproduce.film_policies(plans) == []
+        assert filming.film_policies(plans) == []
         assert ("filmstrip already made" in capsys.readouterr().out) is made and len(commands) == 2 - made
         output.write("another strip", {"filmstrip.json": {**meta, "settings": {**meta["settings"], "interval": 8}}})
 
@@ -159,13 +159,13 @@ def test_reproduce_films_the_first_done_trial_that_holds_a_policy(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A record exported before records carried checkpoints (seed 0 here) has no policy: the next
     done seed with one is filmed, from its record when its run dir is gone."""
-    from plls_bench import reproduce
+    from plls_bench.pipeline import filming
     from plls_bench.pipeline.plan import plan_profile
     from plls_bench.rundirs.record_layout import record_path
     from plls_bench.rundirs.run_dir import Run, config_hash
 
     commands: list[list[str]] = []
-    monkeypatch.setattr(reproduce.subprocess, "run",
+    monkeypatch.setattr(filming.subprocess, "run",
                         lambda cmd: commands.append(cmd) or subprocess.CompletedProcess(cmd, 0))
     plan = plan_profile("quick", str(tmp_path / "runs"), ["mountaincar_plls_ppo"], rates={})[0]
     first, second = plan.trials[:2]
@@ -175,4 +175,4 @@ def test_reproduce_films_the_first_done_trial_that_holds_a_policy(
     _fake_checkpoint(record)
     second = dataclasses.replace(second, recorded=True)
     plan = dataclasses.replace(plan, trials=[first, second, *plan.trials[2:]])
-    assert reproduce.film_policies([plan]) == [] and len(commands) == 1 and str(record) in commands[0]
+    assert filming.film_policies([plan]) == [] and len(commands) == 1 and str(record) in commands[0]
