@@ -13,8 +13,8 @@ import pytest
 
 from plls_bench.config import ENV_NAMES, Config, ConfigError
 from plls_bench.config.runner_checks import RUNNER_CHECKS
-from plls_bench.pipeline.runner_registry import RUNNERS, SPECS, filming_runners, runner_spec
 from plls_bench.pipeline.filming import filmed_presets
+from plls_bench.pipeline.runner_registry import RUNNERS, SPECS, filming_runners, runner_spec
 from plls_bench.rundirs.composition import filmstrip_config
 from tests.conftest import REPO_ROOT, compose_preset
 

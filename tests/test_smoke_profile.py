@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
+from plls_bench.pipeline.filming import filmed_presets
 from plls_bench.pipeline.plan import list_presets
 from plls_bench.pipeline.sweeps import load_sweep, sweep_names
 from plls_bench.report.collect import IdStatus, verify_outputs
 from plls_bench.report.registry import ENTRIES
-from plls_bench.pipeline.filming import filmed_presets
 from tests.test_reproduce import reproduce
 
 
