@@ -3,6 +3,7 @@ each arm from its own count up to the target, at each arm's own rate."""
 from __future__ import annotations
 
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from plls_bench.report.evidence.load import Runs
 from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.rundirs.run_dir import config_hash
 from plls_bench.train.schedule import Schedule
-from tests.conftest import compose_preset
+from tests.conftest import REPO_ROOT, compose_preset
 
 
 def test_each_arm_is_costed_from_its_own_count_at_its_own_rate() -> None:
@@ -96,3 +97,21 @@ def test_a_row_without_runs_prices_its_whole_plan(tmp_path: Path) -> None:
     assert None not in per_trial and "n_a" not in record
     assert record["cost_per_trial_s"] == pytest.approx(sum(per_trial))
     assert record["cost_to_planned_s"] == pytest.approx(settings.planned(claim["claim"]) * sum(per_trial))
+
+
+def test_a_row_with_one_arm_run_prices_only_the_trials_it_lacks(tmp_path: Path) -> None:
+    """Fig. 18's gSDE row with PL-LS + PPO's finished trials and no plain-PPO trial: not judged, and
+    its cost counts the PL-LS trials done (a whole plan of both arms would overstate it)."""
+    preset = "carracing_plls_ppo_gsde"
+    shutil.copytree(REPO_ROOT / "results" / "records" / preset, tmp_path / "records" / preset)
+    runs = Runs(tmp_path / "runs", tmp_path / "records")
+    done = len(runs.experiment(preset).trials)
+    rows = read_claims(PAPER_DIR)
+    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
+    gsde = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
+    claim = next(r for r in rows if r["claim"] == gsde)
+    _, record = power._row(runs, claim, settings, settings.family_size)
+    plan = settings.planned(claim["claim"])
+    per_a, per_b = (trial_seconds(arm, claim["min_budget"]) for arm in (preset, claim["baseline"]))
+    assert done > 0 and "n_a" not in record
+    assert record["cost_to_planned_s"] == pytest.approx(max(plan - done, 0) * per_a + plan * per_b)

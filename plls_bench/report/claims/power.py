@@ -13,7 +13,7 @@ from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settin
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged
-from plls_bench.report.evidence.protocol import planned_n
+from plls_bench.report.evidence.protocol import Comparison, planned_n
 from plls_bench.report.evidence.table_formats import NA, Table, fmt
 
 CAPTION = (
@@ -54,8 +54,7 @@ def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int
                       sd_b=comp.sd_b, effect=comp.effect, n_power=need, n_power_holm=holm_first)
     # a row with no runs yet is costed at the least budget it is judged at, so its whole plan is priced
     budget = runs.experiment(claim["experiment"]).budget or claim["min_budget"] or None
-    more = more_trials(claim["experiment"], claim["baseline"], budget,
-                       (record.get("n_a", 0), record.get("n_b", 0)), record["planned_n"])
+    more = more_trials(claim["experiment"], claim["baseline"], budget, _counts(runs, claim, comp), record["planned_n"])
     record["cost_per_trial_s"] = None if None in more.per_trial_s else sum(more.per_trial_s)
     record["cost_to_planned_s"] = more.seconds  # each arm from its own count (3 + 5 needs 4 + 2 to 7)
     spread = min(record.get("n_a", 0), record.get("n_b", 0)) > 1  # an SD per arm to plan with
@@ -67,6 +66,16 @@ def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int
              _n_text(record.get("n_power_holm"), spread), fmt(record["paper_n"]), str(record["planned_n"]),
              _hours(record["cost_per_trial_s"]), _hours(record["cost_to_planned_s"])]
     return cells, record
+
+
+def _counts(runs: Runs, claim: dict[str, str], comp: Comparison | None) -> tuple[int, int]:
+    """Each arm's trials toward the plan: the comparison's, or for a row not judged yet (an arm with
+    no runs) each arm's finished trials, so 4 + 0 of a planned 6 is priced as 2 + 6 more."""
+    if comp is not None:
+        return comp.n_a, comp.n_b
+    done = len(runs.experiment(claim["experiment"]).trials)
+    # a sweep's other arm is its other values (variants), not the preset's own runs
+    return done, len(runs.experiment(claim["baseline"]).trials) if claim["baseline"] else 0
 
 
 def _n_text(n: int | None, measured: bool) -> str:
