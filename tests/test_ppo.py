@@ -14,7 +14,7 @@ from plls_bench.config import Config
 from plls_bench.envs import make_env
 from plls_bench.envs.evaluation import run_episodes
 from plls_bench.rundirs.composition import compose
-from plls_bench.rundirs.run_dir import HASH_EXCLUDED_KEYS, config_dict
+from plls_bench.rundirs.run_dir import HASH_EXCLUDED_KEYS, HASH_PLAN_KEYS, config_dict
 from plls_bench.train.networks import PaperCNN, SharedMLP, policy_kwargs
 from plls_bench.train.ppo_model import build_vec_env
 from plls_bench.train.schedule import Schedule
@@ -110,7 +110,8 @@ def test_methods_of_a_task_differ_only_in_representations_and_network(presets: l
     the trunk the observations need, and plain PPO's MountainCar learning rate change."""
     configs = [_flat(config_dict(compose([f"+experiment={p}", "budget=paper"]))) for p in presets]
     for other in configs[1:]:
-        ignored = {"experiment", *HASH_EXCLUDED_KEYS}  # names and speed knobs (torch_threads)
+        # names, speed knobs (torch_threads) and trial counts, which follow each arm's claims rows' plans
+        ignored = {"experiment", *HASH_EXCLUDED_KEYS, *HASH_PLAN_KEYS}
         differing = {k for k in configs[0] if configs[0][k] != other[k]} - ignored
         assert differing and all(k.startswith(may_differ) for k in differing), differing
 
