@@ -90,13 +90,15 @@ def test_a_row_without_runs_prices_its_whole_plan(tmp_path: Path) -> None:
     """The power table costs a row no arm has run yet at the least budget it is judged at."""
     rows = read_claims(PAPER_DIR)
     settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
-    gsde = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
-    claim = next(r for r in rows if r["claim"] == gsde)
+    claim = next(r for r in rows if r["claim"] == GSDE_ROW)
     _, record = power._row(Runs(tmp_path / "runs", tmp_path / "records"), claim, settings, settings.family_size)
     per_trial = [trial_seconds(arm, claim["min_budget"]) for arm in (claim["experiment"], claim["baseline"])]
     assert None not in per_trial and "n_a" not in record
     assert record["cost_per_trial_s"] == pytest.approx(sum(per_trial))
     assert record["cost_to_planned_s"] == pytest.approx(settings.planned(claim["claim"]) * sum(per_trial))
+
+
+GSDE_ROW = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
 
 
 def test_a_row_with_one_arm_run_prices_only_the_trials_it_lacks(tmp_path: Path) -> None:
@@ -108,10 +110,30 @@ def test_a_row_with_one_arm_run_prices_only_the_trials_it_lacks(tmp_path: Path) 
     done = len(runs.experiment(preset).trials)
     rows = read_claims(PAPER_DIR)
     settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
-    gsde = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
-    claim = next(r for r in rows if r["claim"] == gsde)
+    claim = next(r for r in rows if r["claim"] == GSDE_ROW)
     _, record = power._row(runs, claim, settings, settings.family_size)
     plan = settings.planned(claim["claim"])
     per_a, per_b = (trial_seconds(arm, claim["min_budget"]) for arm in (preset, claim["baseline"]))
     assert done > 0 and "n_a" not in record
     assert record["cost_to_planned_s"] == pytest.approx(max(plan - done, 0) * per_a + plan * per_b)
+
+
+def test_a_seed_past_the_plan_does_not_lower_an_unjudged_rows_cost(tmp_path: Path) -> None:
+    """An unjudged row counts only the seeds its plan names: a finished trial at a seed past the plan
+    (a trial the row will never read) leaves the cost to the planned n as it was."""
+    preset = "carracing_plls_ppo_gsde"
+    records = tmp_path / "records" / preset
+    shutil.copytree(REPO_ROOT / "results" / "records" / preset, records)
+    rows = read_claims(PAPER_DIR)
+    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
+    claim = next(r for r in rows if r["claim"] == GSDE_ROW)
+
+    def cost() -> float:
+        _, record = power._row(Runs(tmp_path / "runs", tmp_path / "records"), claim, settings, settings.family_size)
+        assert "n_a" not in record
+        return record["cost_to_planned_s"]
+
+    before = cost()
+    first = sorted(records.glob("*/seed=*"))[0]
+    shutil.copytree(first, first.parent / f"seed={settings.planned(claim['claim']) + 3}")
+    assert cost() == pytest.approx(before)

@@ -54,7 +54,8 @@ def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int
                       sd_b=comp.sd_b, effect=comp.effect, n_power=need, n_power_holm=holm_first)
     # a row with no runs yet is costed at the least budget it is judged at, so its whole plan is priced
     budget = runs.experiment(claim["experiment"]).budget or claim["min_budget"] or None
-    more = more_trials(claim["experiment"], claim["baseline"], budget, _counts(runs, claim, comp), record["planned_n"])
+    counts = _counts(runs, claim, comp, record["planned_n"])
+    more = more_trials(claim["experiment"], claim["baseline"], budget, counts, record["planned_n"])
     record["cost_per_trial_s"] = None if None in more.per_trial_s else sum(more.per_trial_s)
     record["cost_to_planned_s"] = more.seconds  # each arm from its own count (3 + 5 needs 4 + 2 to 7)
     spread = min(record.get("n_a", 0), record.get("n_b", 0)) > 1  # an SD per arm to plan with
@@ -68,14 +69,18 @@ def _row(runs: Runs, claim: dict[str, str], settings: ClaimSettings, family: int
     return cells, record
 
 
-def _counts(runs: Runs, claim: dict[str, str], comp: Comparison | None) -> tuple[int, int]:
+def _counts(runs: Runs, claim: dict[str, str], comp: Comparison | None, planned: int | None) -> tuple[int, int]:
     """Each arm's trials toward the plan: the comparison's, or for a row not judged yet (an arm with
-    no runs) each arm's finished trials, so 4 + 0 of a planned 6 is priced as 2 + 6 more."""
+    no runs) each arm's finished trials of the seeds the plan names (0 to ``planned`` - 1), so 4 + 0
+    of a planned 6 is priced as 2 + 6 more, and a seed past the plan does not stand in for one in it."""
     if comp is not None:
         return comp.n_a, comp.n_b
-    done = len(runs.experiment(claim["experiment"]).trials)
+
+    def in_plan(name: str) -> int:
+        return sum(planned is None or t.seed < planned for t in runs.experiment(name).trials)
+
     # a sweep's other arm is its other values (variants), not the preset's own runs
-    return done, len(runs.experiment(claim["baseline"]).trials) if claim["baseline"] else 0
+    return in_plan(claim["experiment"]), in_plan(claim["baseline"]) if claim["baseline"] else 0
 
 
 def _n_text(n: int | None, measured: bool) -> str:
