@@ -14,7 +14,7 @@ from plls_bench.report.claims import power
 from plls_bench.report.claims.claims_table import read_claims
 from plls_bench.report.claims.costs import MoreTrials, more_trials, trial_seconds
 from plls_bench.report.collect import PAPER_DIR
-from plls_bench.report.evidence.claim_settings import load_settings
+from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.rundirs.record_layout import PARTIAL_DIR, PARTIAL_MARKER
 from plls_bench.rundirs.run_dir import config_hash
@@ -86,19 +86,23 @@ def test_the_quick_and_paper_profiles_run_an_arm_to_its_rows_plans(tmp_path: Pat
     assert compose_preset(preset, tmp_path, "budget=paper").budget.trials >= max(plans)
 
 
+GSDE_ROW = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
+
+
+def _gsde_row() -> tuple[ClaimSettings, dict[str, str]]:
+    """The declared settings and Fig. 18's gSDE row of ``claims.yaml``."""
+    rows = read_claims(PAPER_DIR)
+    return load_settings(PAPER_DIR, [r["claim"] for r in rows]), next(r for r in rows if r["claim"] == GSDE_ROW)
+
+
 def test_a_row_without_runs_prices_its_whole_plan(tmp_path: Path) -> None:
     """The power table costs a row no arm has run yet at the least budget it is judged at."""
-    rows = read_claims(PAPER_DIR)
-    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
-    claim = next(r for r in rows if r["claim"] == GSDE_ROW)
+    settings, claim = _gsde_row()
     _, record = power._row(Runs(tmp_path / "runs", tmp_path / "records"), claim, settings, settings.family_size)
     per_trial = [trial_seconds(arm, claim["min_budget"]) for arm in (claim["experiment"], claim["baseline"])]
     assert None not in per_trial and "n_a" not in record
     assert record["cost_per_trial_s"] == pytest.approx(sum(per_trial))
     assert record["cost_to_planned_s"] == pytest.approx(settings.planned(claim["claim"]) * sum(per_trial))
-
-
-GSDE_ROW = "PL-LS with PPO beats PPO on CarRacing (final return) [gSDE exploration]"
 
 
 def test_a_row_with_one_arm_run_prices_only_the_trials_it_lacks(tmp_path: Path) -> None:
@@ -108,9 +112,7 @@ def test_a_row_with_one_arm_run_prices_only_the_trials_it_lacks(tmp_path: Path) 
     shutil.copytree(REPO_ROOT / "results" / "records" / preset, tmp_path / "records" / preset)
     runs = Runs(tmp_path / "runs", tmp_path / "records")
     done = len(runs.experiment(preset).trials)
-    rows = read_claims(PAPER_DIR)
-    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
-    claim = next(r for r in rows if r["claim"] == GSDE_ROW)
+    settings, claim = _gsde_row()
     _, record = power._row(runs, claim, settings, settings.family_size)
     plan = settings.planned(claim["claim"])
     per_a, per_b = (trial_seconds(arm, claim["min_budget"]) for arm in (preset, claim["baseline"]))
@@ -124,9 +126,7 @@ def test_a_seed_past_the_plan_does_not_lower_an_unjudged_rows_cost(tmp_path: Pat
     preset = "carracing_plls_ppo_gsde"
     records = tmp_path / "records" / preset
     shutil.copytree(REPO_ROOT / "results" / "records" / preset, records)
-    rows = read_claims(PAPER_DIR)
-    settings = load_settings(PAPER_DIR, [r["claim"] for r in rows])
-    claim = next(r for r in rows if r["claim"] == GSDE_ROW)
+    settings, claim = _gsde_row()
 
     def cost() -> float:
         _, record = power._row(Runs(tmp_path / "runs", tmp_path / "records"), claim, settings, settings.family_size)

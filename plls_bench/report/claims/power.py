@@ -5,6 +5,7 @@ primary comparisons), the paper's own trial count, the planned n of ``claims.yam
 trial costs by the dry run's rates (:mod:`plls_bench.report.claims.costs`)."""
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from plls_bench.report.claims.claims_table import KINDS, read_claims
@@ -12,6 +13,7 @@ from plls_bench.report.claims.costs import more_trials
 from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
 from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.looks import planned_seeds
 from plls_bench.report.evidence.matched import NotJudged
 from plls_bench.report.evidence.protocol import Comparison, planned_n
 from plls_bench.report.evidence.table_formats import NA, Table, fmt
@@ -77,7 +79,8 @@ def _counts(runs: Runs, claim: dict[str, str], comp: Comparison | None, planned:
         return comp.n_a, comp.n_b
 
     def in_plan(name: str) -> int:
-        return sum(planned is None or t.seed < planned for t in runs.experiment(name).trials)
+        seeds = np.array([t.seed for t in runs.experiment(name).trials], dtype=int)
+        return int(planned_seeds(np.ones(len(seeds), dtype=bool), seeds, planned).sum())
 
     # a sweep's other arm is its other values (variants), not the preset's own runs
     return in_plan(claim["experiment"]), in_plan(claim["baseline"]) if claim["baseline"] else 0
