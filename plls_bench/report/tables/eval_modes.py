@@ -2,7 +2,8 @@
 episodes read both ways, and whether the two differ (docs/decisions.md#d20: the paper does not say
 which its test episodes did). Under SB3's Gaussian, plain PPO on CarRacing keeps an action SD near 1
 and its two readings reverse Fig. 18's ranking; this table shows, per exploration setting, where the
-readings agree."""
+readings agree. A declared sweep's other values (``conf/sweep/<name>.yaml``) get a row each beside the
+preset's own: N_e changes how far V_a's latent mean is from the actions the policy trained on."""
 from __future__ import annotations
 
 import math
@@ -10,12 +11,14 @@ import math
 import numpy as np
 import pandas as pd
 
+from plls_bench.pipeline.sweeps import load_sweep
 from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settings
-from plls_bench.report.evidence.entry_types import Entry, Options, Output, Source
-from plls_bench.report.evidence.load import Runs
+from plls_bench.report.evidence.entry_types import Entry, Options, Output
+from plls_bench.report.evidence.load import DEFAULT_VARIANT, Runs
 from plls_bench.report.evidence.protocol import one_sample_p, t_interval, tail_mean
 from plls_bench.report.evidence.returns import DEFAULT_X_AXIS, Curves, load_curves
 from plls_bench.report.evidence.table_formats import NA, Table, fmt
+from plls_bench.report.evidence.trials import Experiment
 
 COLUMNS = ["Arm", "Exploration", "Budget", "Trials", "Final, acting on the mean", "Final, sampled actions",
            "Sampled - mean [95% t-interval]", "Paired test", "Readings"]
@@ -30,7 +33,8 @@ def caption(settings: ClaimSettings) -> str:
         "paired: the difference per trial is tested by a two-sided one-sample t-test against 0 at alpha = "
         f"{settings.alpha:g}, each arm on its own (a description of the evaluation mode, not a claim of the "
         f"paper, so no Holm family), and only from {settings.min_n} trials. 'No difference found' is not "
-        "a proof of equality.")
+        "a proof of equality. A declared sweep's values other than the preset's own (conf/sweep/<name>.yaml) "
+        "follow as rows of their own, each its run-dir variant.")
 
 
 def paired_finals(det: Curves, sampled: Curves, tail: int) -> tuple[np.ndarray, np.ndarray]:
@@ -68,33 +72,44 @@ def _spread(values: np.ndarray) -> str:
     return fmt(values.mean()) + (f" ± {fmt(values.std(ddof=1))}" if len(values) > 1 else "")
 
 
-def _arm(runs: Runs, source: Source, settings: ClaimSettings) -> tuple[list[str], dict, int]:
-    exp = runs.experiment(source.experiment)
+def _arm(runs: Runs, exp: Experiment, name: str, settings: ClaimSettings) -> tuple[list[str], dict, int]:
+    """One row: ``exp``'s finished trials read both ways; ``name`` is the row's first cell."""
     exploration = NA if not exp.trials else "gSDE" if exp.cfg("algo.ppo.use_sde") else "Gaussian"
-    det, sampled = (load_curves(runs, exp, source.label, DEFAULT_X_AXIS, policy=p)
-                    for p in ("deterministic", "stochastic"))
+    det, sampled = (load_curves(runs, exp, name, DEFAULT_X_AXIS, policy=p) for p in ("deterministic", "stochastic"))
     mean_final, sampled_final = paired_finals(det, sampled, settings.final_tail)
     diff = sampled_final - mean_final
     test, outcome, p = readings(diff, settings) if len(diff) else ("no finished trials", "not run", math.nan)
     low, high = t_interval(diff) if len(diff) > 1 else (math.nan, math.nan)
     interval = NA if not len(diff) else fmt(diff.mean()) + (f" [{fmt(low)}, {fmt(high)}]" if len(diff) > 1 else "")
-    cells = [f"{source.label} (`{source.experiment}`)", exploration, exp.budget or NA, str(len(diff)),
+    cells = [name, exploration, exp.budget or NA, str(len(diff)),
              _spread(mean_final), _spread(sampled_final), interval, test, outcome]
-    record = {"experiment": source.experiment, "exploration": exploration, "budget": exp.budget,
+    record = {"experiment": exp.name, "variant": exp.variant, "exploration": exploration, "budget": exp.budget,
               "trials": len(diff), "final_mean_action": float(mean_final.mean()) if len(diff) else math.nan,
               "final_sampled": float(sampled_final.mean()) if len(diff) else math.nan,
               "difference": float(diff.mean()) if len(diff) else math.nan, "p": p, "readings": outcome}
     return cells, record, len(diff)
 
 
-def evaluation_modes(runs: Runs, entry: Entry, opts: Options) -> Output:
-    """One row per arm of ``entry.sources``."""
+def _arms(entry: Entry, runs: Runs, sweeps: tuple[str, ...]) -> list[tuple[Experiment, str]]:
+    """``(runs, row name)`` per source of ``entry``, then per other value of each sweep in ``sweeps``."""
+    arms = [(runs.experiment(s.experiment), f"{s.label} (`{s.experiment}`)") for s in entry.sources]
+    labels = {s.experiment: s.label for s in entry.sources}
+    for spec in map(load_sweep, sweeps):
+        for value in spec.others:
+            variant = spec.arm_variant(value) or DEFAULT_VARIANT
+            label = f"{labels.get(spec.preset, spec.preset)}, {spec.override(value)}"
+            arms.append((runs.experiment(spec.preset, variant), f"{label} (`{spec.preset}`, sweep `{spec.name}`)"))
+    return arms
+
+
+def evaluation_modes(runs: Runs, entry: Entry, opts: Options, *, sweeps: tuple[str, ...] = ()) -> Output:
+    """One row per arm of ``entry.sources``, then one per other value of each declared sweep."""
     settings = load_settings(opts.paper_dir, None)  # the protocol block; the claims table checks the names
     rows, records, trials = [], [], {}
-    for source in entry.sources:
-        cells, record, n = _arm(runs, source, settings)
+    for exp, name in _arms(entry, runs, sweeps):
+        cells, record, n = _arm(runs, exp, name, settings)
         rows.append(cells)
         records.append(record)
-        trials[f"{source.label} ({source.experiment})"] = n  # labels repeat across tasks
+        trials[name.replace("`", "")] = n  # labels repeat across tasks: the name carries the preset
     table = Table(f"{entry.ref}. {entry.title}", caption(settings), COLUMNS, rows, pd.DataFrame(records))
     return Output(table=table, trials=trials, empty=not any(trials.values()))
