@@ -49,16 +49,16 @@ def test_plan_gives_each_value_its_variant_and_its_own_va(tmp_path: Path) -> Non
     assert all("repr_action/carracing" in missing for missing in keys.values()), keys
 
 
-def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 5) -> None:
+def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 5, sampled: float = -1.0) -> None:
     """``trials`` finished runs of the N_e = ``value`` arm (the preset's own runs for 32), flat
     at -20 until iteration 2 then at ``finals[seed]`` (the last 3 evaluations, the claims' final
-    return); V_a's test MSE ``mse``."""
+    return), sampled actions ``sampled`` more; V_a's test MSE ``mse``."""
     variant = "default" if value == 32 else f"repr.action.latent_dim={value}"
     overrides = () if value == 32 else (f"repr.action.latent_dim={value}",)
     for seed in range(trials):
         run, cfg = make_run(runs, PRESET, seed, "quick", f"budget.trials={trials}", *overrides, variant=variant)
         iterations = [0, 2, 4, 6, 8]
-        write_eval(run, cfg, iterations, [[-20.0 if i <= 2 else finals[seed]] * 2 for i in iterations])
+        write_eval(run, cfg, iterations, [[-20.0 if i <= 2 else finals[seed]] * 2 for i in iterations], sampled)
         write_repr(run, "action", 2, mse, artifact=f"va-{value}")
         finish(run, cfg)
 
@@ -101,6 +101,18 @@ def test_claim_not_reproduced_when_another_value_beats_32(tmp_path: Path) -> Non
     row = claim_row(runs, tmp_path / "out")
     assert row["verdict"] == "not reproduced"  # N_e = 8 stands for the row: it beats 32
     assert row["suite_value"] == -400.0 and "v=8 104.5 vs 504.5" in row["suite"] and "v=8" in row["suite"]
+
+
+def test_sampled_actions_row_reads_the_same_trials_acting_on_sampled_actions(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"  # N_e = 32 best acting on the mean; N_e = 3 best (by 300) when actions are sampled
+    for value, level, sampled in ((3, 0.0, 400.0), (8, 10.0, 0.0), (16, 20.0, 0.0), (32, 100.0, 0.0), (64, 30.0, 0.0)):
+        arm(runs, value, [level + k for k in range(10)], mse=0.01, trials=10, sampled=sampled)
+    render_all(runs, tmp_path / "out", only=["claims"])
+    table = pd.read_csv(tmp_path / "out" / "tables" / "claims.csv").set_index("claim")
+    mean, sampled = (table.loc[f"{CLAIM} (CarRacing, final return{tail})"] for tail in ("", "; sampled actions"))
+    assert mean["verdict"] == "reproduced" and "v=3 104.5 vs 4.5" in mean["suite"]
+    assert sampled["verdict"] == "not reproduced" and sampled["suite_value"] == pytest.approx(-300.0)
+    assert "v=3 104.5 vs 404.5" in sampled["suite"] and "v=8 104.5 vs 14.5" in sampled["suite"]
 
 
 def test_claim_not_run_names_the_missing_values_and_the_trial_count(tmp_path: Path) -> None:

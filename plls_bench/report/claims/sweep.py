@@ -1,6 +1,7 @@
 """Claim kind ``sweep_best``: the preset's own value of a declared sweep performs the best (Sec.
 5.2: "the dimensionality of the action representation e is set as N_e = 32, which performs the
-best"). ``param`` names the sweep (``conf/sweep/<param>.yaml``).
+best"). ``param`` names the sweep (``conf/sweep/<param>.yaml``), or ``<sweep>:stochastic`` to read the
+same test episodes with sampled actions (docs/decisions.md#d20; the deterministic policy otherwise).
 
 For every other value v, the base value's final returns (mean over the last ``final_tail``
 evaluations every finished trial of every arm reaches) are compared with v's under the protocol
@@ -18,6 +19,7 @@ import math
 
 from plls_bench.pipeline.sweeps import load_sweep
 from plls_bench.report.claims.compare import arm_mix, first_trials_text
+from plls_bench.report.claims.values import policy_of
 from plls_bench.report.evidence.claim_settings import ClaimSettings
 from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.matched import NotJudged, finished_counts, require_trials
@@ -31,8 +33,8 @@ from plls_bench.report.evidence.verdicts import Estimate
 
 def sweep_best(runs: Runs, claim: dict[str, str], settings: ClaimSettings) -> Estimate:
     """The base value against each other value on final return; see the module docstring."""
-    sweep = load_sweep(claim["param"])
-    arms = sweep_arms(runs, sweep, claim["x_axis"] or DEFAULT_X_AXIS)
+    sweep = load_sweep(claim["param"].partition(":")[0])
+    arms = sweep_arms(runs, sweep, claim["x_axis"] or DEFAULT_X_AXIS, policy_of(claim))
     budgets = [a.exp.budget for a in arms]
     base = next(i for i, a in enumerate(arms) if a.value == sweep.base)
     counts = finished_counts(*(a.curves for a in arms))

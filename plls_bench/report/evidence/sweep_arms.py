@@ -40,12 +40,13 @@ class Arm:
         return str(self.value)
 
 
-def sweep_arms(runs: Runs, sweep: Sweep, x_axis: str) -> list[Arm]:
-    """Every value's arm, in the sweep's order (arms without runs have ``curves.n == 0``)."""
+def sweep_arms(runs: Runs, sweep: Sweep, x_axis: str, policy: str = "deterministic") -> list[Arm]:
+    """Every value's arm, in the sweep's order (arms without runs have ``curves.n == 0``), its test
+    returns read under ``policy`` (a key of :data:`~plls_bench.core.metric_rows.POLICIES`)."""
     arms = []
     for value in sweep.values:
         exp = runs.experiment(sweep.preset, sweep.arm_variant(value) or DEFAULT_VARIANT)
-        arms.append(Arm(value, exp, load_curves(runs, exp, f"{sweep.key}={value}", x_axis)))
+        arms.append(Arm(value, exp, load_curves(runs, exp, f"{sweep.key}={value}", x_axis, policy=policy)))
     return arms
 
 
