@@ -88,7 +88,7 @@ def test_claim_reproduced_when_32_beats_every_other_value(tmp_path: Path) -> Non
                                   "seeds 2, 3, 4, 5, 6, 7, 8, 9 (cuda, bbbbbbb)")
     render_all(runs, tmp_path / "out", only=["sweep_ne"])
     data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv")
-    final = data.query("panel == 'final'").set_index("value")
+    final = data.query("panel == 'final' and series == 'acting on the mean'").set_index("value")
     assert final.loc[32, "mean"] == 104.5 and final.loc[8, "variant"] == "repr.action.latent_dim=8"
     mse = data.query("panel == 'va_test_mse' and series == 'z sampled'").set_index("value")
     assert mse["mean"].to_dict() == pytest.approx({v: 0.001 * v for v in (3, 8, 16, 32, 64)})
@@ -113,6 +113,11 @@ def test_sampled_actions_row_reads_the_same_trials_acting_on_sampled_actions(tmp
     assert mean["verdict"] == "reproduced" and "v=3 104.5 vs 4.5" in mean["suite"]
     assert sampled["verdict"] == "not reproduced" and sampled["suite_value"] == pytest.approx(-300.0)
     assert "v=3 104.5 vs 404.5" in sampled["suite"] and "v=8 104.5 vs 14.5" in sampled["suite"]
+    render_all(runs, tmp_path / "out", only=["sweep_ne"])  # the figure draws both readings of the same trials
+    data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv").query("panel == 'final'")
+    finals = data.pivot(index="value", columns="series", values="mean")
+    assert finals.loc[3].to_dict() == pytest.approx({"acting on the mean": 4.5, "sampled actions": 404.5})
+    assert finals.loc[32].to_dict() == pytest.approx({"acting on the mean": 104.5, "sampled actions": 104.5})
 
 
 def test_claim_not_run_names_the_missing_values_and_the_trial_count(tmp_path: Path) -> None:

@@ -40,14 +40,18 @@ class Arm:
         return str(self.value)
 
 
+def sweep_experiments(runs: Runs, sweep: Sweep, values: tuple[Any, ...] | None = None) -> list[tuple[Any, Experiment]]:
+    """``(value, runs)`` per value of ``sweep`` (all of them, in its order, unless ``values``): the
+    preset's own variant for its base value, the override's variant for every other."""
+    return [(value, runs.experiment(sweep.preset, sweep.arm_variant(value) or DEFAULT_VARIANT))
+            for value in (sweep.values if values is None else values)]
+
+
 def sweep_arms(runs: Runs, sweep: Sweep, x_axis: str, policy: str = "deterministic") -> list[Arm]:
     """Every value's arm, in the sweep's order (arms without runs have ``curves.n == 0``), its test
     returns read under ``policy`` (a key of :data:`~plls_bench.core.metric_rows.POLICIES`)."""
-    arms = []
-    for value in sweep.values:
-        exp = runs.experiment(sweep.preset, sweep.arm_variant(value) or DEFAULT_VARIANT)
-        arms.append(Arm(value, exp, load_curves(runs, exp, f"{sweep.key}={value}", x_axis, policy=policy)))
-    return arms
+    return [Arm(value, exp, load_curves(runs, exp, sweep.override(value), x_axis, policy=policy))
+            for value, exp in sweep_experiments(runs, sweep)]
 
 
 def scores(pair: Matched) -> dict[str, list[np.ndarray]]:

@@ -1,7 +1,9 @@
 """A declared sweep as a figure (the N_e sweep of Sec. 5.2): final return and mean return over the
 curve against the swept value, mean over trials with the 95% bootstrap CI of the mean, each trial
-as a dot; beside them V_a's test MSE against the value under both readings (z sampled, decode(mu)).
-Returns are compared at the evaluations every finished trial of every arm reaches."""
+as a dot, the same test episodes read acting on the policy's mean and sampling actions
+(docs/decisions.md#d20); beside them V_a's test MSE against the value under both readings
+(z sampled, decode(mu)). Returns are compared at the evaluations every finished trial of every arm
+reaches."""
 from __future__ import annotations
 
 import numpy as np
@@ -16,6 +18,8 @@ from plls_bench.report.evidence.sweep_arms import MSE_READINGS, Arm, matched_arm
 from plls_bench.report.figures.plot import empty_output, new_figure, suptitle
 
 PANELS = {"final": "final return", "mean": "mean return over the curve"}
+# The return series: how the test episodes act (a key of plls_bench.core.metric_rows.POLICIES).
+READINGS = {"deterministic": "acting on the mean", "stochastic": "sampled actions"}
 
 
 def _row(panel: str, series: str, arm: Arm, values: np.ndarray, at: str) -> dict:
@@ -26,18 +30,25 @@ def _row(panel: str, series: str, arm: Arm, values: np.ndarray, at: str) -> dict
             "points": " ".join(f"{v:.6g}" for v in values)}
 
 
-def sweep_data(runs: Runs, arms: list[Arm]) -> pd.DataFrame:
-    """The tidy data: one row per (panel, series, value)."""
-    rows = []
+def _return_rows(runs: Runs, arms: list[Arm], series: str) -> list[dict]:
+    """The return panels' points of one reading, at the evaluations every finished trial reaches."""
     done = [a for a in arms if a.curves.finished_seeds().any()]
     try:
         pair = matched_arms(runs, done) if done else None
     except NotJudged as err:  # no x every arm reaches: returns are not drawn, MSE still is
-        runs.gap(done[0].exp, None, f"sweep returns not drawn: {err}")
-        pair = None
-    if pair is not None:
-        for panel, per_arm in scores(pair).items():
-            rows += [_row(panel, "return", arm, v, pair.at) for arm, v in zip(done, per_arm)]
+        runs.gap(done[0].exp, None, f"sweep returns ({series}) not drawn: {err}")
+        return []
+    if pair is None:
+        return []
+    return [_row(panel, series, arm, v, pair.at)
+            for panel, per_arm in scores(pair).items() for arm, v in zip(done, per_arm)]
+
+
+def sweep_data(runs: Runs, arms_by_reading: dict[str, list[Arm]]) -> pd.DataFrame:
+    """The tidy data: one row per (panel, series, value); ``arms_by_reading`` maps a return series
+    (a value of :data:`READINGS`) to the sweep's arms read that way, the first also giving V_a's MSE."""
+    rows = [row for series, arms in arms_by_reading.items() for row in _return_rows(runs, arms, series)]
+    arms = next(iter(arms_by_reading.values()))
     for field, reading in MSE_READINGS.items():
         rows += [_row("va_test_mse", reading, arm, np.array(v), "") for arm in arms if (v := va_mse(runs, arm, field))]
     return pd.DataFrame(rows)
@@ -56,14 +67,15 @@ def _draw(ax, frame: pd.DataFrame, color: str, label: str, base: float) -> None:
 
 
 def sweep_figure(runs: Runs, entry: Entry, opts: Options, *, sweep: str) -> Output:
-    """Three panels over the sweep's values: final return, mean return, V_a test MSE."""
+    """Three panels over the sweep's values: final return and mean return (both readings), V_a test MSE."""
     spec = load_sweep(sweep)
-    arms = sweep_arms(runs, spec, opts.x_axis)
+    by_reading = {series: sweep_arms(runs, spec, opts.x_axis, policy) for policy, series in READINGS.items()}
+    arms = by_reading[READINGS["deterministic"]]
     name = spec.key.rsplit(".", 1)[-1]
     trials = {f"{name}={a.value}": a.curves.n for a in arms}
     budgets = sorted({b for a in arms if (b := a.exp.budget)})
     title = f"{entry.title} (budget {'/'.join(budgets) or 'none'})"
-    data = sweep_data(runs, arms)
+    data = sweep_data(runs, by_reading)
     if data.empty:
         return empty_output(runs, entry, title)
     fig = new_figure(entry.size)
@@ -78,6 +90,7 @@ def sweep_figure(runs: Runs, entry: Entry, opts: Options, *, sweep: str) -> Outp
         ax.set_ylabel(ylabel)
         if panel == "va_test_mse" and not part.empty and (part["mean"] > 0).all():
             ax.set_yscale("log")
+        if part["series"].nunique() > 1:
             ax.legend(fontsize=8)
         at = part["at"].iloc[0] if not part.empty else ""
         ax.set_title(f"{ylabel}{', ' + at if at else ''}" if not part.empty else f"{ylabel}: no data", fontsize=8)

@@ -14,9 +14,10 @@ import pandas as pd
 from plls_bench.pipeline.sweeps import load_sweep
 from plls_bench.report.evidence.claim_settings import ClaimSettings, load_settings
 from plls_bench.report.evidence.entry_types import Entry, Options, Output
-from plls_bench.report.evidence.load import DEFAULT_VARIANT, Runs
+from plls_bench.report.evidence.load import Runs
 from plls_bench.report.evidence.protocol import one_sample_p, t_interval, tail_mean
 from plls_bench.report.evidence.returns import DEFAULT_X_AXIS, Curves, load_curves
+from plls_bench.report.evidence.sweep_arms import sweep_experiments
 from plls_bench.report.evidence.table_formats import NA, Table, fmt
 from plls_bench.report.evidence.trials import Experiment
 
@@ -90,15 +91,17 @@ def _arm(runs: Runs, exp: Experiment, name: str, settings: ClaimSettings) -> tup
     return cells, record, len(diff)
 
 
-def _arms(entry: Entry, runs: Runs, sweeps: tuple[str, ...]) -> list[tuple[Experiment, str]]:
-    """``(runs, row name)`` per source of ``entry``, then per other value of each sweep in ``sweeps``."""
-    arms = [(runs.experiment(s.experiment), f"{s.label} (`{s.experiment}`)") for s in entry.sources]
+def _arms(entry: Entry, runs: Runs, sweeps: tuple[str, ...]) -> list[tuple[Experiment, str, str]]:
+    """``(runs, row name, trials key)`` per source of ``entry``, then per other value of each sweep in
+    ``sweeps``; the key names the preset because labels repeat across tasks."""
+    arms = [(runs.experiment(s.experiment), f"{s.label} (`{s.experiment}`)", f"{s.label} ({s.experiment})")
+            for s in entry.sources]
     labels = {s.experiment: s.label for s in entry.sources}
     for spec in map(load_sweep, sweeps):
-        for value in spec.others:
-            variant = spec.arm_variant(value) or DEFAULT_VARIANT
+        for value, exp in sweep_experiments(runs, spec, spec.others):
             label = f"{labels.get(spec.preset, spec.preset)}, {spec.override(value)}"
-            arms.append((runs.experiment(spec.preset, variant), f"{label} (`{spec.preset}`, sweep `{spec.name}`)"))
+            arms.append((exp, f"{label} (`{spec.preset}`, sweep `{spec.name}`)",
+                         f"{label} ({spec.preset}, sweep {spec.name})"))
     return arms
 
 
@@ -106,10 +109,10 @@ def evaluation_modes(runs: Runs, entry: Entry, opts: Options, *, sweeps: tuple[s
     """One row per arm of ``entry.sources``, then one per other value of each declared sweep."""
     settings = load_settings(opts.paper_dir, None)  # the protocol block; the claims table checks the names
     rows, records, trials = [], [], {}
-    for exp, name in _arms(entry, runs, sweeps):
+    for exp, name, key in _arms(entry, runs, sweeps):
         cells, record, n = _arm(runs, exp, name, settings)
         rows.append(cells)
         records.append(record)
-        trials[name.replace("`", "")] = n  # labels repeat across tasks: the name carries the preset
+        trials[key] = n
     table = Table(f"{entry.ref}. {entry.title}", caption(settings), COLUMNS, rows, pd.DataFrame(records))
     return Output(table=table, trials=trials, empty=not any(trials.values()))
