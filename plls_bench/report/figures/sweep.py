@@ -33,12 +33,12 @@ def _row(panel: str, series: str, arm: Arm, values: np.ndarray, at: str) -> dict
 def _return_rows(runs: Runs, arms: list[Arm], series: str) -> list[dict]:
     """The return panels' points of one reading, at the evaluations every finished trial reaches."""
     done = [a for a in arms if a.curves.finished_seeds().any()]
+    if not done:
+        return []
     try:
-        pair = matched_arms(runs, done) if done else None
+        pair = matched_arms(runs, done)
     except NotJudged as err:  # no x every arm reaches: returns are not drawn, MSE still is
         runs.gap(done[0].exp, None, f"sweep returns ({series}) not drawn: {err}")
-        return []
-    if pair is None:
         return []
     return [_row(panel, series, arm, v, pair.at)
             for panel, per_arm in scores(pair).items() for arm, v in zip(done, per_arm)]
