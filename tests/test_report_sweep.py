@@ -49,16 +49,18 @@ def test_plan_gives_each_value_its_variant_and_its_own_va(tmp_path: Path) -> Non
     assert all("repr_action/carracing" in missing for missing in keys.values()), keys
 
 
-def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 5, sampled: float = -1.0) -> None:
+def arm(runs: Path, value: int, finals: list[float], mse: float, trials: int = 5, sampled: float = -1.0,
+        last_jump: float = 0.0) -> None:
     """``trials`` finished runs of the N_e = ``value`` arm (the preset's own runs for 32), flat
     at -20 until iteration 2 then at ``finals[seed]`` (the last 3 evaluations, the claims' final
-    return), sampled actions ``sampled`` more; V_a's test MSE ``mse``."""
+    return), the last one ``last_jump`` higher, sampled actions ``sampled`` more; V_a's test MSE ``mse``."""
     variant = "default" if value == 32 else f"repr.action.latent_dim={value}"
     overrides = () if value == 32 else (f"repr.action.latent_dim={value}",)
     for seed in range(trials):
         run, cfg = make_run(runs, PRESET, seed, "quick", f"budget.trials={trials}", *overrides, variant=variant)
         iterations = [0, 2, 4, 6, 8]
-        write_eval(run, cfg, iterations, [[-20.0 if i <= 2 else finals[seed]] * 2 for i in iterations], sampled)
+        returns = [-20.0 if i <= 2 else finals[seed] + (last_jump if i == iterations[-1] else 0.0) for i in iterations]
+        write_eval(run, cfg, iterations, [[r] * 2 for r in returns], sampled)
         write_repr(run, "action", 2, mse, artifact=f"va-{value}")
         finish(run, cfg)
 
@@ -118,6 +120,17 @@ def test_sampled_actions_row_reads_the_same_trials_acting_on_sampled_actions(tmp
     finals = data.pivot(index="value", columns="series", values="mean")
     assert finals.loc[3].to_dict() == pytest.approx({"acting on the mean": 4.5, "sampled actions": 404.5})
     assert finals.loc[32].to_dict() == pytest.approx({"acting on the mean": 104.5, "sampled actions": 104.5})
+
+
+def test_figure_final_is_the_claims_final_not_the_last_evaluation(tmp_path: Path) -> None:
+    runs = tmp_path / "runs"  # N_e = 8 jumps by 300 at its last evaluation only: the mean of 3 moves by 100
+    for value, level, jump in ((3, 0.0, 0.0), (8, 10.0, 300.0), (16, 20.0, 0.0), (32, 100.0, 0.0), (64, 30.0, 0.0)):
+        arm(runs, value, [level + k for k in range(10)], mse=0.01, trials=10, last_jump=jump)
+    assert "v=8 104.5 vs 114.5" in claim_row(runs, tmp_path / "out")["suite"]
+    render_all(runs, tmp_path / "out", only=["sweep_ne"])
+    data = pd.read_csv(tmp_path / "out" / "figures" / "sweep_ne.csv").set_index(["panel", "series", "value"])
+    assert data.loc[("final", "acting on the mean", 8), "mean"] == pytest.approx(114.5)  # last evaluation: 314.5
+    assert data.loc[("mean", "acting on the mean", 8), "mean"] == pytest.approx((-40 + 3 * 14.5 + 300) / 5)
 
 
 def test_claim_not_run_names_the_missing_values_and_the_trial_count(tmp_path: Path) -> None:

@@ -3,10 +3,10 @@
 override's variant for every other, and what each arm is scored on.
 
 Scores are per trial on the evaluations that every finished trial of every arm reaches
-(:func:`plls_bench.report.evidence.matched.matched`): the final return (the largest common x) and the mean
-return over the common evaluations. V_a's test MSE per arm comes from the arm's own runs'
-``metrics/repr_test.json`` (written by the ``ppo`` runner for the models it trained on), one value
-per distinct artifact.
+(:func:`plls_bench.report.evidence.matched.matched`): the final return (the mean of the last
+``final_tail`` common evaluations, as the claims rows read it) and the mean return over the common
+evaluations. V_a's test MSE per arm comes from the arm's own runs' ``metrics/repr_test.json`` (written
+by the ``ppo`` runner for the models it trained on), one value per distinct artifact.
 """
 from __future__ import annotations
 
@@ -19,6 +19,7 @@ import numpy as np
 from plls_bench.pipeline.sweeps import Sweep
 from plls_bench.report.evidence.load import DEFAULT_VARIANT, Runs
 from plls_bench.report.evidence.matched import Matched, matched
+from plls_bench.report.evidence.protocol import tail_mean
 from plls_bench.report.evidence.returns import Curves, load_curves
 from plls_bench.report.evidence.trials import Experiment
 
@@ -54,10 +55,11 @@ def sweep_arms(runs: Runs, sweep: Sweep, x_axis: str, policy: str = "determinist
             for value, exp in sweep_experiments(runs, sweep)]
 
 
-def scores(pair: Matched) -> dict[str, list[np.ndarray]]:
-    """Per arm, ``final`` ``(n_i,)`` (return at the last common x) and ``mean`` ``(n_i,)`` (mean
-    return over the common evaluations) of each finished trial; ``pair.values[i]`` is ``(n_i, P)``."""
-    return {"final": [v[:, -1] for v in pair.values], "mean": [v.mean(axis=1) for v in pair.values]}
+def scores(pair: Matched, tail: int) -> dict[str, list[np.ndarray]]:
+    """Per arm, ``final`` ``(n_i,)`` (mean return over the last ``tail`` common evaluations, the
+    claims rows' final) and ``mean`` ``(n_i,)`` (mean return over the common evaluations) of each
+    finished trial; ``pair.values[i]`` is ``(n_i, P)``."""
+    return {"final": [tail_mean(v, tail) for v in pair.values], "mean": [v.mean(axis=1) for v in pair.values]}
 
 
 def matched_arms(runs: Runs, arms: list[Arm], first: int | None = None) -> Matched:
